@@ -1,0 +1,98 @@
+"""Battle state and command arrays: every field is a NumPy array shaped (B, U) over B battles and U unit slots.
+
+Slots ``0 .. n_red-1`` hold the learner's (red) units in SMAC's agent order, the rest the opponent's (blue) units in
+creation order (SMAC's enemy order). The arrays are the engine's public contract: the SMAC feature layer, opponent
+scripts, renderers and the sc2 backend read them (the sc2 backend also writes them from raw observations).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+# Orders a unit can be carrying out (``BattleState.order``).
+ORDER_IDLE, ORDER_MOVE, ORDER_ATTACK, ORDER_ATTACK_MOVE, ORDER_HOLD, ORDER_HEAL = 0, 1, 2, 3, 4, 5
+ORDER_NAMES = ("idle", "move", "attack", "attack_move", "hold", "heal")
+
+# Commands a controller can send (``Commands.kind``). NOOP keeps the current order.
+CMD_NOOP, CMD_STOP, CMD_HOLD, CMD_MOVE, CMD_ATTACK, CMD_ATTACK_MOVE, CMD_HEAL = 0, 1, 2, 3, 4, 5, 6
+COMMAND_NAMES = ("noop", "stop", "hold", "move", "attack", "attack_move", "heal")
+
+RED, BLUE = 0, 1
+NO_UNIT = -1
+
+
+class BattleState(NamedTuple):
+    """State of B battles (arrays (B, U) unless noted). Health and shields are current values."""
+
+    utype: np.ndarray  # int32: row of the unit table
+    side: np.ndarray  # int8: RED or BLUE
+    alive: np.ndarray  # bool
+    x: np.ndarray  # float64 world position
+    y: np.ndarray  # float64
+    health: np.ndarray  # float64
+    shield: np.ndarray  # float64
+    energy: np.ndarray  # float64
+    cooldown: np.ndarray  # float64: game loops until the weapon can fire (<= 0: ready)
+    shield_wait: np.ndarray  # float64: loops until shields start to regenerate
+    order: np.ndarray  # int8: ORDER_*
+    order_target: np.ndarray  # int32: unit slot of an attack/heal order
+    order_x: np.ndarray  # float64: point of a move/attack-move order
+    order_y: np.ndarray  # float64
+    target: np.ndarray  # int32: unit the weapon (or heal) is engaging now, NO_UNIT if none
+    attacker: np.ndarray  # int32: last unit that damaged this one (SC2's "response when attacked")
+    fired_at: np.ndarray  # int32: last unit fired at (or healed) during the latest env step, for rendering
+    burst: np.ndarray  # bool: a baneling that exploded during the latest env step
+    alive_at_loop: np.ndarray  # bool scratch: alive when the current game loop began (simultaneous fire)
+    loop: np.ndarray  # int64 (B,): game loops since the battle's reset
+
+
+class Commands(NamedTuple):
+    """Per-unit commands for one env step (arrays (B, U)); NOOP everywhere means "keep the current orders"."""
+
+    kind: np.ndarray  # int8: CMD_*
+    target: np.ndarray  # int32: unit slot for attack/heal
+    x: np.ndarray  # float64: point for move/attack-move
+    y: np.ndarray  # float64
+
+    @classmethod
+    def empty(cls, batch: int, n_units: int) -> Commands:
+        return cls(
+            kind=np.zeros((batch, n_units), dtype=np.int8),
+            target=np.full((batch, n_units), NO_UNIT, dtype=np.int32),
+            x=np.zeros((batch, n_units), dtype=np.float64),
+            y=np.zeros((batch, n_units), dtype=np.float64),
+        )
+
+    def clear(self) -> None:
+        """Reset every command to NOOP in place."""
+        self.kind[:] = CMD_NOOP
+        self.target[:] = NO_UNIT
+
+
+_FIELD_DTYPES = {
+    "utype": np.int32, "side": np.int8, "alive": np.bool_, "x": np.float64, "y": np.float64,
+    "health": np.float64, "shield": np.float64, "energy": np.float64, "cooldown": np.float64,
+    "shield_wait": np.float64, "order": np.int8, "order_target": np.int32, "order_x": np.float64,
+    "order_y": np.float64, "target": np.int32, "attacker": np.int32, "fired_at": np.int32, "burst": np.bool_,
+    "alive_at_loop": np.bool_,
+}
+
+
+def allocate_state(batch: int, n_units: int) -> BattleState:
+    """Zeroed state for ``batch`` battles of ``n_units`` slots."""
+    arrays = {name: np.zeros((batch, n_units), dtype=dt) for name, dt in _FIELD_DTYPES.items()}
+    for name in ("order_target", "target", "attacker", "fired_at"):
+        arrays[name][:] = NO_UNIT
+    return BattleState(**arrays, loop=np.zeros(batch, dtype=np.int64))
+
+
+def copy_battle(src: BattleState, src_index: int, dst: BattleState, dst_index: int) -> None:
+    """Copy one battle's state between two states of the same unit layout."""
+    for name in BattleState._fields:
+        getattr(dst, name)[dst_index] = getattr(src, name)[src_index]
+
+
+def state_nbytes(state: BattleState) -> int:
+    return sum(a.nbytes for a in state)
