@@ -74,7 +74,7 @@ _EDGE = 1e-4  # keeps positions strictly inside the map
 # Small helpers.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mover(stats, t):
     if stats[t, _IS_AIR] > 0:
         return MOVER_AIR
@@ -83,21 +83,21 @@ def _mover(stats, t):
     return MOVER_GROUND
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _can_hit(stats, attacker_type, target_type):
     if stats[target_type, _IS_AIR] > 0:
         return stats[attacker_type, _HITS_AIR] > 0
     return stats[attacker_type, _HITS_GROUND] > 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _edge_distance(x, y, stats, utype, b, i, j):
     dx = x[b, j] - x[b, i]
     dy = y[b, j] - y[b, i]
     return math.sqrt(dx * dx + dy * dy) - stats[utype[b, i], _RADIUS] - stats[utype[b, j], _RADIUS]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _reach(stats, t):
     """How close (edge to edge) a unit must be to its target to act: weapon or heal range."""
     return stats[t, _RANGE]
@@ -107,102 +107,129 @@ def _reach(stats, t):
 # Commands.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _apply_commands(b, st, kind, cmd_target, cmd_x, cmd_y, stats):
-    n = st.alive.shape[1]
+    st_alive = st.alive
+    st_burst = st.burst
+    st_fired_at = st.fired_at
+    st_order = st.order
+    st_order_target = st.order_target
+    st_order_x = st.order_x
+    st_order_y = st.order_y
+    st_side = st.side
+    st_target = st.target
+    st_utype = st.utype
+    n = st_alive.shape[1]
     for i in range(n):
-        st.fired_at[b, i] = NO_UNIT
-        st.burst[b, i] = False
+        st_fired_at[b, i] = NO_UNIT
+        st_burst[b, i] = False
         k = kind[b, i]
-        if k == CMD_NOOP or not st.alive[b, i]:
+        if k == CMD_NOOP or not st_alive[b, i]:
             continue
         if k == CMD_STOP:
-            st.order[b, i] = ORDER_IDLE
-            st.target[b, i] = NO_UNIT
+            st_order[b, i] = ORDER_IDLE
+            st_target[b, i] = NO_UNIT
         elif k == CMD_HOLD:
-            st.order[b, i] = ORDER_HOLD
-            st.target[b, i] = NO_UNIT
+            st_order[b, i] = ORDER_HOLD
+            st_target[b, i] = NO_UNIT
         elif k == CMD_MOVE or k == CMD_ATTACK_MOVE:
-            st.order[b, i] = ORDER_MOVE if k == CMD_MOVE else ORDER_ATTACK_MOVE
-            st.order_x[b, i] = cmd_x[b, i]
-            st.order_y[b, i] = cmd_y[b, i]
-            st.target[b, i] = NO_UNIT
+            st_order[b, i] = ORDER_MOVE if k == CMD_MOVE else ORDER_ATTACK_MOVE
+            st_order_x[b, i] = cmd_x[b, i]
+            st_order_y[b, i] = cmd_y[b, i]
+            st_target[b, i] = NO_UNIT
         elif k == CMD_ATTACK or k == CMD_HEAL:
             j = cmd_target[b, i]
-            if j < 0 or j >= n or j == i or not st.alive[b, j]:
+            if j < 0 or j >= n or j == i or not st_alive[b, j]:
                 continue
-            ti, tj = st.utype[b, i], st.utype[b, j]
+            ti, tj = st_utype[b, i], st_utype[b, j]
             healer = stats[ti, _WEAPON] == WEAPON_HEAL
-            if k == CMD_ATTACK and not healer and st.side[b, j] != st.side[b, i] and _can_hit(stats, ti, tj):
-                st.order[b, i] = ORDER_ATTACK
-            elif k == CMD_HEAL and healer and st.side[b, j] == st.side[b, i]:
-                st.order[b, i] = ORDER_HEAL
+            if k == CMD_ATTACK and not healer and st_side[b, j] != st_side[b, i] and _can_hit(stats, ti, tj):
+                st_order[b, i] = ORDER_ATTACK
+            elif k == CMD_HEAL and healer and st_side[b, j] == st_side[b, i]:
+                st_order[b, i] = ORDER_HEAL
             else:
                 continue
-            st.order_target[b, i] = j
-            st.target[b, i] = j
+            st_order_target[b, i] = j
+            st_target[b, i] = j
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 1. Timers.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _timers(b, st, stats):
-    n = st.alive.shape[1]
+    st_alive = st.alive
+    st_alive_at_loop = st.alive_at_loop
+    st_cooldown = st.cooldown
+    st_energy = st.energy
+    st_health = st.health
+    st_shield = st.shield
+    st_shield_wait = st.shield_wait
+    st_utype = st.utype
+    n = st_alive.shape[1]
     for i in range(n):
-        st.alive_at_loop[b, i] = st.alive[b, i]
-        if not st.alive[b, i]:
+        st_alive_at_loop[b, i] = st_alive[b, i]
+        if not st_alive[b, i]:
             continue
-        t = st.utype[b, i]
-        if st.cooldown[b, i] > 0.0:
-            st.cooldown[b, i] -= 1.0
+        t = st_utype[b, i]
+        if st_cooldown[b, i] > 0.0:
+            st_cooldown[b, i] -= 1.0
         regen = stats[t, _REGEN]
-        if regen > 0.0 and st.health[b, i] < stats[t, _HEALTH]:
-            st.health[b, i] = min(stats[t, _HEALTH], st.health[b, i] + regen)
+        if regen > 0.0 and st_health[b, i] < stats[t, _HEALTH]:
+            st_health[b, i] = min(stats[t, _HEALTH], st_health[b, i] + regen)
         if stats[t, _SHIELD] > 0.0:
-            if st.shield_wait[b, i] > 0.0:
-                st.shield_wait[b, i] -= 1.0
-            elif st.shield[b, i] < stats[t, _SHIELD]:
-                st.shield[b, i] = min(stats[t, _SHIELD], st.shield[b, i] + stats[t, _SHIELD_REGEN])
-        if stats[t, _ENERGY_MAX] > 0.0 and st.energy[b, i] < stats[t, _ENERGY_MAX]:
-            st.energy[b, i] = min(stats[t, _ENERGY_MAX], st.energy[b, i] + stats[t, _ENERGY_REGEN])
+            if st_shield_wait[b, i] > 0.0:
+                st_shield_wait[b, i] -= 1.0
+            elif st_shield[b, i] < stats[t, _SHIELD]:
+                st_shield[b, i] = min(stats[t, _SHIELD], st_shield[b, i] + stats[t, _SHIELD_REGEN])
+        if stats[t, _ENERGY_MAX] > 0.0 and st_energy[b, i] < stats[t, _ENERGY_MAX]:
+            st_energy[b, i] = min(stats[t, _ENERGY_MAX], st_energy[b, i] + stats[t, _ENERGY_REGEN])
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 2. Targeting.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _heal_wanted(st, stats, b, j):
-    t = st.utype[b, j]
-    return (st.alive[b, j] and stats[t, _IS_AIR] == 0 and (int(stats[t, _ATTR]) & _BIO) != 0
-            and st.health[b, j] < stats[t, _HEALTH])
+    st_alive = st.alive
+    st_health = st.health
+    st_utype = st.utype
+    t = st_utype[b, j]
+    return (st_alive[b, j] and stats[t, _IS_AIR] == 0 and (int(stats[t, _ATTR]) & _BIO) != 0
+            and st_health[b, j] < stats[t, _HEALTH])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _acquire_heal(b, i, st, stats):
     """Non-passive medivacs heal the nearest damaged biological ally within scan range."""
-    n = st.alive.shape[1]
-    t = st.utype[b, i]
-    cur = st.target[b, i]
+    st_alive = st.alive
+    st_side = st.side
+    st_target = st.target
+    st_utype = st.utype
+    st_x = st.x
+    st_y = st.y
+    n = st_alive.shape[1]
+    t = st_utype[b, i]
+    cur = st_target[b, i]
     scan = stats[t, _SCAN]
     if cur >= 0 and _heal_wanted(st, stats, b, cur) and (
-            _edge_distance(st.x, st.y, stats, st.utype, b, i, cur) <= scan + _LEASH):
+            _edge_distance(st_x, st_y, stats, st_utype, b, i, cur) <= scan + _LEASH):
         return
     best = NO_UNIT
     best_d = np.inf
     for j in range(n):
-        if j == i or st.side[b, j] != st.side[b, i] or not _heal_wanted(st, stats, b, j):
+        if j == i or st_side[b, j] != st_side[b, i] or not _heal_wanted(st, stats, b, j):
             continue
-        d = _edge_distance(st.x, st.y, stats, st.utype, b, i, j)
+        d = _edge_distance(st_x, st_y, stats, st_utype, b, i, j)
         if d <= scan and d < best_d:
             best_d = d
             best = j
-    st.target[b, i] = best
+    st_target[b, i] = best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _acquire_weapon(b, i, st, stats):
     """SC2's automatic targeting: keep a valid target, else prefer units attacking us, then the closest.
 
@@ -210,31 +237,39 @@ def _acquire_weapon(b, i, st, stats):
     when attacked); holding units only look within weapon range. Passive (*_RL) units acquire only while
     attack-moving and never respond.
     """
-    n = st.alive.shape[1]
-    t = st.utype[b, i]
-    order = st.order[b, i]
+    st_alive = st.alive
+    st_attacker = st.attacker
+    st_order = st.order
+    st_side = st.side
+    st_target = st.target
+    st_utype = st.utype
+    st_x = st.x
+    st_y = st.y
+    n = st_alive.shape[1]
+    t = st_utype[b, i]
+    order = st_order[b, i]
     passive = stats[t, _PASSIVE] > 0
     if order == ORDER_MOVE or (passive and order != ORDER_ATTACK_MOVE):
-        st.target[b, i] = NO_UNIT
+        st_target[b, i] = NO_UNIT
         return
     reach = stats[t, _RANGE] if order == ORDER_HOLD else stats[t, _SCAN]
     leash = stats[t, _RANGE] if order == ORDER_HOLD else stats[t, _SCAN] + _LEASH
-    cur = st.target[b, i]
-    if cur >= 0 and st.alive[b, cur] and _edge_distance(st.x, st.y, stats, st.utype, b, i, cur) <= leash:
+    cur = st_target[b, i]
+    if cur >= 0 and st_alive[b, cur] and _edge_distance(st_x, st_y, stats, st_utype, b, i, cur) <= leash:
         return
     responder = (not passive) and order != ORDER_HOLD
     best = NO_UNIT
     best_rank = 3
     best_d = np.inf
     for j in range(n):
-        if not st.alive[b, j] or st.side[b, j] == st.side[b, i]:
+        if not st_alive[b, j] or st_side[b, j] == st_side[b, i]:
             continue
-        if not _can_hit(stats, t, st.utype[b, j]):
+        if not _can_hit(stats, t, st_utype[b, j]):
             continue
-        d = _edge_distance(st.x, st.y, stats, st.utype, b, i, j)
+        d = _edge_distance(st_x, st_y, stats, st_utype, b, i, j)
         if d <= reach:
-            rank = 0 if st.target[b, j] == i else 1
-        elif responder and st.attacker[b, i] == j:
+            rank = 0 if st_target[b, j] == i else 1
+        elif responder and st_attacker[b, i] == j:
             rank = 2
         else:
             continue
@@ -242,28 +277,33 @@ def _acquire_weapon(b, i, st, stats):
             best_rank = rank
             best_d = d
             best = j
-    st.target[b, i] = best
+    st_target[b, i] = best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _targeting(b, st, stats):
-    n = st.alive.shape[1]
+    st_alive = st.alive
+    st_order = st.order
+    st_order_target = st.order_target
+    st_target = st.target
+    st_utype = st.utype
+    n = st_alive.shape[1]
     for i in range(n):
-        if not st.alive[b, i]:
+        if not st_alive[b, i]:
             continue
-        t = st.utype[b, i]
-        order = st.order[b, i]
+        t = st_utype[b, i]
+        order = st_order[b, i]
         if order == ORDER_ATTACK or order == ORDER_HEAL:
-            j = st.order_target[b, i]
-            if j >= 0 and st.alive[b, j]:
-                st.target[b, i] = j
+            j = st_order_target[b, i]
+            if j >= 0 and st_alive[b, j]:
+                st_target[b, i] = j
                 continue
-            st.order[b, i] = ORDER_IDLE  # the ordered target is gone: the order is complete
-            st.target[b, i] = NO_UNIT
+            st_order[b, i] = ORDER_IDLE  # the ordered target is gone: the order is complete
+            st_target[b, i] = NO_UNIT
             order = ORDER_IDLE
         if stats[t, _WEAPON] == WEAPON_HEAL:
             if stats[t, _PASSIVE] > 0 or order == ORDER_MOVE:
-                st.target[b, i] = NO_UNIT
+                st_target[b, i] = NO_UNIT
             else:
                 _acquire_heal(b, i, st, stats)
         elif stats[t, _DAMAGE] > 0:
@@ -274,7 +314,7 @@ def _targeting(b, st, stats):
 # 3. Movement.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cell(v, size):
     c = int(v)
     if c < 0:
@@ -284,7 +324,7 @@ def _cell(v, size):
     return c
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _waypoint(mover, x, y, gx, gy, walk, next_hop, los):
     """Where to head now to reach (gx, gy): the goal if visible, else the farthest visible cell on the path."""
     if mover == MOVER_AIR:
@@ -307,65 +347,75 @@ def _waypoint(mover, x, y, gx, gy, walk, next_hop, los):
     return (hop // my) + 0.5, (hop % my) + 0.5
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _commit(b, i, st, nx, ny, mover, walk):
     """Move unit i to (nx, ny) if its centre stays walkable, else slide along one axis, else stay."""
+    st_x = st.x
+    st_y = st.y
     mx, my = walk.shape[1], walk.shape[2]
     nx = min(max(nx, _EDGE), mx - _EDGE)
     ny = min(max(ny, _EDGE), my - _EDGE)
     if mover == MOVER_AIR:
-        st.x[b, i] = nx
-        st.y[b, i] = ny
+        st_x[b, i] = nx
+        st_y[b, i] = ny
         return
-    x, y = st.x[b, i], st.y[b, i]
+    x, y = st_x[b, i], st_y[b, i]
     if walk[mover, int(nx), int(ny)]:
-        st.x[b, i] = nx
-        st.y[b, i] = ny
+        st_x[b, i] = nx
+        st_y[b, i] = ny
     elif walk[mover, int(nx), int(y)]:
-        st.x[b, i] = nx
+        st_x[b, i] = nx
     elif walk[mover, int(x), int(ny)]:
-        st.y[b, i] = ny
+        st_y[b, i] = ny
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _movement(b, st, stats, walk, next_hop, los):
-    n = st.alive.shape[1]
+    st_alive = st.alive
+    st_order = st.order
+    st_order_x = st.order_x
+    st_order_y = st.order_y
+    st_target = st.target
+    st_utype = st.utype
+    st_x = st.x
+    st_y = st.y
+    n = st_alive.shape[1]
     for i in range(n):
-        if not st.alive[b, i]:
+        if not st_alive[b, i]:
             continue
-        t = st.utype[b, i]
+        t = st_utype[b, i]
         speed = stats[t, _SPEED]
-        order = st.order[b, i]
+        order = st_order[b, i]
         if speed <= 0.0 or order == ORDER_HOLD:
             continue
-        j = st.target[b, i]
+        j = st_target[b, i]
         if j >= 0:
-            if _edge_distance(st.x, st.y, stats, st.utype, b, i, j) <= _reach(stats, t):
+            if _edge_distance(st_x, st_y, stats, st_utype, b, i, j) <= _reach(stats, t):
                 continue  # in range: stand and act
-            gx, gy = st.x[b, j], st.y[b, j]
+            gx, gy = st_x[b, j], st_y[b, j]
         elif order == ORDER_MOVE or order == ORDER_ATTACK_MOVE:
-            gx, gy = st.order_x[b, i], st.order_y[b, i]
-            dx, dy = gx - st.x[b, i], gy - st.y[b, i]
+            gx, gy = st_order_x[b, i], st_order_y[b, i]
+            dx, dy = gx - st_x[b, i], gy - st_y[b, i]
             if dx * dx + dy * dy <= _ARRIVE * _ARRIVE:
-                st.order[b, i] = ORDER_IDLE
+                st_order[b, i] = ORDER_IDLE
                 continue
         else:
             continue
         mover = _mover(stats, t)
-        wx, wy = _waypoint(mover, st.x[b, i], st.y[b, i], gx, gy, walk, next_hop, los)
-        dx, dy = wx - st.x[b, i], wy - st.y[b, i]
+        wx, wy = _waypoint(mover, st_x[b, i], st_y[b, i], gx, gy, walk, next_hop, los)
+        dx, dy = wx - st_x[b, i], wy - st_y[b, i]
         d = math.sqrt(dx * dx + dy * dy)
         if d < 1e-12:
             continue
         step = min(speed, d)
-        _commit(b, i, st, st.x[b, i] + dx / d * step, st.y[b, i] + dy / d * step, mover, walk)
+        _commit(b, i, st, st_x[b, i] + dx / d * step, st_y[b, i] + dy / d * step, mover, walk)
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 4. Separation.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _collide(stats, ti, tj):
     """Same plane: air with air; cliff walkers (massive) only with each other; other ground units together."""
     if stats[ti, _IS_AIR] != stats[tj, _IS_AIR]:
@@ -375,27 +425,32 @@ def _collide(stats, ti, tj):
     return stats[ti, _CLIFF_WALK] == stats[tj, _CLIFF_WALK]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _separation(b, st, stats, walk):
-    n = st.alive.shape[1]
+    st_alive = st.alive
+    st_order = st.order
+    st_utype = st.utype
+    st_x = st.x
+    st_y = st.y
+    n = st_alive.shape[1]
     for i in range(n):
-        if not st.alive[b, i]:
+        if not st_alive[b, i]:
             continue
-        ti = st.utype[b, i]
-        wi = 1.0 if stats[ti, _SPEED] > 0.0 and st.order[b, i] != ORDER_HOLD else 0.0
+        ti = st_utype[b, i]
+        wi = 1.0 if stats[ti, _SPEED] > 0.0 and st_order[b, i] != ORDER_HOLD else 0.0
         for j in range(i + 1, n):
-            if not st.alive[b, j]:
+            if not st_alive[b, j]:
                 continue
-            tj = st.utype[b, j]
+            tj = st_utype[b, j]
             if not _collide(stats, ti, tj):
                 continue
-            dx = st.x[b, j] - st.x[b, i]
-            dy = st.y[b, j] - st.y[b, i]
+            dx = st_x[b, j] - st_x[b, i]
+            dy = st_y[b, j] - st_y[b, i]
             rr = stats[ti, _RADIUS] + stats[tj, _RADIUS]
             d2 = dx * dx + dy * dy
             if d2 >= rr * rr:
                 continue
-            wj = 1.0 if stats[tj, _SPEED] > 0.0 and st.order[b, j] != ORDER_HOLD else 0.0
+            wj = 1.0 if stats[tj, _SPEED] > 0.0 and st_order[b, j] != ORDER_HOLD else 0.0
             if wi + wj == 0.0:
                 continue
             d = math.sqrt(d2)
@@ -408,33 +463,38 @@ def _separation(b, st, stats, walk):
             si = overlap * wi / (wi + wj)
             sj = overlap * wj / (wi + wj)
             if si > 0.0:
-                _commit(b, i, st, st.x[b, i] - ux * si, st.y[b, i] - uy * si, _mover(stats, ti), walk)
+                _commit(b, i, st, st_x[b, i] - ux * si, st_y[b, i] - uy * si, _mover(stats, ti), walk)
             if sj > 0.0:
-                _commit(b, j, st, st.x[b, j] + ux * sj, st.y[b, j] + uy * sj, _mover(stats, tj), walk)
+                _commit(b, j, st, st_x[b, j] + ux * sj, st_y[b, j] + uy * sj, _mover(stats, tj), walk)
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 5. Attacks, heals, bursts.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _damage(b, st, stats, j, amount, source):
     """One hit of ``amount`` on unit j: shields absorb first, then armour applies, at least 0.5 on health."""
-    t = st.utype[b, j]
-    if st.shield[b, j] > 0.0:
-        absorbed = min(st.shield[b, j], amount)
-        st.shield[b, j] -= absorbed
+    st_attacker = st.attacker
+    st_health = st.health
+    st_shield = st.shield
+    st_shield_wait = st.shield_wait
+    st_utype = st.utype
+    t = st_utype[b, j]
+    if st_shield[b, j] > 0.0:
+        absorbed = min(st_shield[b, j], amount)
+        st_shield[b, j] -= absorbed
         amount -= absorbed
         if amount > 0.0:
-            st.health[b, j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
+            st_health[b, j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
     else:
-        st.health[b, j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
+        st_health[b, j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
     if stats[t, _SHIELD] > 0.0:
-        st.shield_wait[b, j] = _SHIELD_DELAY
-    st.attacker[b, j] = source
+        st_shield_wait[b, j] = _SHIELD_DELAY
+    st_attacker[b, j] = source
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _hit_amount(stats, attacker_type, target_type):
     amount = stats[attacker_type, _DAMAGE]
     if (int(stats[target_type, _ATTR]) & int(stats[attacker_type, _BONUS_ATTR])) != 0:
@@ -442,12 +502,18 @@ def _hit_amount(stats, attacker_type, target_type):
     return amount
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _line_splash(b, st, stats, i, j):
     """Colossus: every hit lands on all enemy ground units touching a line across the target (length x width)."""
-    n = st.alive.shape[1]
-    ti = st.utype[b, i]
-    ux, uy = st.x[b, j] - st.x[b, i], st.y[b, j] - st.y[b, i]
+    st_alive = st.alive
+    st_alive_at_loop = st.alive_at_loop
+    st_side = st.side
+    st_utype = st.utype
+    st_x = st.x
+    st_y = st.y
+    n = st_alive.shape[1]
+    ti = st_utype[b, i]
+    ux, uy = st_x[b, j] - st_x[b, i], st_y[b, j] - st_y[b, i]
     norm = math.sqrt(ux * ux + uy * uy)
     if norm < 1e-9:
         ux, uy = 1.0, 0.0
@@ -457,12 +523,12 @@ def _line_splash(b, st, stats, i, j):
     half_w = 0.5 * stats[ti, _SPLASH_W]
     hits = int(stats[ti, _HITS])
     for k in range(n):
-        if not st.alive_at_loop[b, k] or st.side[b, k] == st.side[b, i]:
+        if not st_alive_at_loop[b, k] or st_side[b, k] == st_side[b, i]:
             continue
-        tk = st.utype[b, k]
+        tk = st_utype[b, k]
         if stats[tk, _IS_AIR] > 0:
             continue
-        vx, vy = st.x[b, k] - st.x[b, j], st.y[b, k] - st.y[b, j]
+        vx, vy = st_x[b, k] - st_x[b, j], st_y[b, k] - st_y[b, j]
         across = abs(vx * -uy + vy * ux)  # along the line, perpendicular to the shot
         along = abs(vx * ux + vy * uy)  # along the shot, the line's thickness
         rk = stats[tk, _RADIUS]
@@ -472,102 +538,134 @@ def _line_splash(b, st, stats, i, j):
                 _damage(b, st, stats, k, amount, i)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _burst(b, st, stats, i):
     """Baneling: damage every enemy ground unit within the splash radius (of its edge), then die."""
-    n = st.alive.shape[1]
-    ti = st.utype[b, i]
+    st_alive = st.alive
+    st_alive_at_loop = st.alive_at_loop
+    st_burst = st.burst
+    st_health = st.health
+    st_side = st.side
+    st_utype = st.utype
+    st_x = st.x
+    st_y = st.y
+    n = st_alive.shape[1]
+    ti = st_utype[b, i]
     radius = stats[ti, _SPLASH_R]
     for k in range(n):
-        if not st.alive_at_loop[b, k] or st.side[b, k] == st.side[b, i]:
+        if not st_alive_at_loop[b, k] or st_side[b, k] == st_side[b, i]:
             continue
-        tk = st.utype[b, k]
+        tk = st_utype[b, k]
         if stats[tk, _IS_AIR] > 0:
             continue
-        dx, dy = st.x[b, k] - st.x[b, i], st.y[b, k] - st.y[b, i]
+        dx, dy = st_x[b, k] - st_x[b, i], st_y[b, k] - st_y[b, i]
         if math.sqrt(dx * dx + dy * dy) - stats[tk, _RADIUS] <= radius:
             _damage(b, st, stats, k, _hit_amount(stats, ti, tk), i)
-    st.health[b, i] = 0.0
-    st.burst[b, i] = True
+    st_health[b, i] = 0.0
+    st_burst[b, i] = True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _heal(b, st, stats, i, j):
-    ti, tj = st.utype[b, i], st.utype[b, j]
-    missing = stats[tj, _HEALTH] - st.health[b, j]
+    st_energy = st.energy
+    st_fired_at = st.fired_at
+    st_health = st.health
+    st_utype = st.utype
+    ti, tj = st_utype[b, i], st_utype[b, j]
+    missing = stats[tj, _HEALTH] - st_health[b, j]
     if missing <= 0.0 or (int(stats[tj, _ATTR]) & _BIO) == 0 or stats[tj, _IS_AIR] > 0:
         return
     cost = stats[ti, _HEAL_COST]
-    amount = min(stats[ti, _HEAL_RATE], missing, st.energy[b, i] / cost)
+    amount = min(stats[ti, _HEAL_RATE], missing, st_energy[b, i] / cost)
     if amount <= 0.0:
         return
-    st.health[b, j] += amount
-    st.energy[b, i] -= amount * cost
-    st.fired_at[b, i] = j
+    st_health[b, j] += amount
+    st_energy[b, i] -= amount * cost
+    st_fired_at[b, i] = j
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _attacks(b, st, stats):
-    n = st.alive.shape[1]
+    st_alive = st.alive
+    st_alive_at_loop = st.alive_at_loop
+    st_cooldown = st.cooldown
+    st_fired_at = st.fired_at
+    st_target = st.target
+    st_utype = st.utype
+    st_x = st.x
+    st_y = st.y
+    n = st_alive.shape[1]
     for i in range(n):
-        if not st.alive_at_loop[b, i]:
+        if not st_alive_at_loop[b, i]:
             continue
-        j = st.target[b, i]
-        if j < 0 or not st.alive_at_loop[b, j]:
+        j = st_target[b, i]
+        if j < 0 or not st_alive_at_loop[b, j]:
             continue
-        t = st.utype[b, i]
-        if _edge_distance(st.x, st.y, stats, st.utype, b, i, j) > _reach(stats, t):
+        t = st_utype[b, i]
+        if _edge_distance(st_x, st_y, stats, st_utype, b, i, j) > _reach(stats, t):
             continue
         weapon = stats[t, _WEAPON]
         if weapon == WEAPON_HEAL:
             _heal(b, st, stats, i, j)
         elif weapon == WEAPON_BURST:
             _burst(b, st, stats, i)
-        elif st.cooldown[b, i] <= 0.0:
+        elif st_cooldown[b, i] <= 0.0:
             if weapon == WEAPON_LINE_SPLASH:
                 _line_splash(b, st, stats, i, j)
             else:
-                amount = _hit_amount(stats, t, st.utype[b, j])
+                amount = _hit_amount(stats, t, st_utype[b, j])
                 for _ in range(int(stats[t, _HITS])):
                     _damage(b, st, stats, j, amount, i)
-            st.cooldown[b, i] += stats[t, _COOLDOWN]
-            st.fired_at[b, i] = j
+            st_cooldown[b, i] += stats[t, _COOLDOWN]
+            st_fired_at[b, i] = j
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 6. Deaths, and the drivers.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _deaths(b, st):
-    n = st.alive.shape[1]
+    st_alive = st.alive
+    st_health = st.health
+    st_order = st.order
+    st_shield = st.shield
+    st_target = st.target
+    n = st_alive.shape[1]
     for i in range(n):
-        if st.alive[b, i] and st.health[b, i] <= 0.0:
-            st.alive[b, i] = False
-            st.health[b, i] = 0.0
-            st.shield[b, i] = 0.0
-            st.order[b, i] = ORDER_IDLE
-            st.target[b, i] = NO_UNIT
+        if st_alive[b, i] and st_health[b, i] <= 0.0:
+            st_alive[b, i] = False
+            st_health[b, i] = 0.0
+            st_shield[b, i] = 0.0
+            st_order[b, i] = ORDER_IDLE
+            st_target[b, i] = NO_UNIT
 
 
 @njit(cache=True)
 def game_loop(b, st, stats, walk, next_hop, los):
     """Advance battle ``b`` by one game loop."""
+    st_loop = st.loop
     _timers(b, st, stats)
     _targeting(b, st, stats)
     _movement(b, st, stats, walk, next_hop, los)
     _separation(b, st, stats, walk)
     _attacks(b, st, stats)
     _deaths(b, st)
-    st.loop[b] += 1
+    st_loop[b] += 1
+
+
+@njit(cache=True)
+def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops):
+    """Apply battle b's commands, then run ``n_loops`` game loops."""
+    _apply_commands(b, st, kind, cmd_target, cmd_x, cmd_y, stats)
+    for _ in range(n_loops):
+        game_loop(b, st, stats, walk, next_hop, los)
 
 
 @njit(cache=True, parallel=True)
 def step_batch(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops, active):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``."""
-    for b in prange(st.alive.shape[0]):
-        if not active[b]:
-            continue
-        _apply_commands(b, st, kind, cmd_target, cmd_x, cmd_y, stats)
-        for _ in range(n_loops):
-            game_loop(b, st, stats, walk, next_hop, los)
+    st_alive = st.alive
+    for b in prange(st_alive.shape[0]):
+        if active[b]:
+            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops)

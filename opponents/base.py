@@ -1,0 +1,52 @@
+"""``base``: SMAC's default opponent.
+
+On each battle's first step every unit gets the map's enemy order (smac_interface §9): attack-move to the learner's
+spawn on most maps, to a random point between the two marines on 2m_vs_1z, an attack on the nearest colossus on
+2c_vs_64zg, nothing on 2s_vs_1sc. Afterwards the script sends no command: SC2's automatic targeting drives the units
+(acquire the closest target in scan range, prefer attackers, respond when hit, resume the attack-move).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smac_hard_gym.opponents.api import Script, SideView
+from smac_hard_gym.engine.state import CMD_ATTACK, CMD_ATTACK_MOVE, Commands
+
+
+class BaseScript(Script):
+    name = "base"
+    description = "SMAC default: the map's attack-move order at spawn, then SC2 automatic targeting"
+
+    def __init__(self) -> None:
+        self._points: np.ndarray | None = None  # (B, 2) attack-move point per battle
+
+    def reset(self, view: SideView, battles: np.ndarray, rngs: list[np.random.Generator]) -> None:
+        order = view.spec.enemy_order
+        if self._points is None or self._points.shape[0] != view.batch_size:
+            self._points = np.zeros((view.batch_size, 2))
+        for b in battles:
+            if order.kind == "attack_move_between":
+                (x0, y0), (x1, y1) = order.points
+                u = rngs[b].random()
+                self._points[b] = (x0 + u * (x1 - x0), y0 + u * (y1 - y0))
+            elif order.kind == "attack_move":
+                self._points[b] = order.point
+
+    def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
+        first = active & (view.episode_step == 0)
+        if not first.any():
+            return
+        kind = view.spec.enemy_order.kind
+        own = view.own
+        if kind in ("attack_move", "attack_move_between"):
+            commands.kind[first, own] = CMD_ATTACK_MOVE
+            commands.x[first, own] = self._points[first, 0:1]
+            commands.y[first, own] = self._points[first, 1:2]
+        elif kind == "attack_units":
+            # SC2's attack on the enemy unit group: each unit goes for the nearest enemy.
+            dx = view.own_x[first][:, :, None] - view.enemy_x[first][:, None, :]
+            dy = view.own_y[first][:, :, None] - view.enemy_y[first][:, None, :]
+            dist = np.where(view.enemy_alive[first][:, None, :], dx * dx + dy * dy, np.inf)
+            commands.kind[first, own] = CMD_ATTACK
+            commands.target[first, own] = view.enemy_slot(dist.argmin(axis=2))

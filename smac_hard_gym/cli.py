@@ -1,0 +1,40 @@
+"""``smac-hard-gym`` command line: thin argparse front ends, one module per subcommand.
+
+Each module in :mod:`smac_hard_gym.commands` defines ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``;
+adding a subcommand is one line in ``COMMANDS``. Modules are imported lazily so ``--help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+COMMANDS: dict[str, str] = {
+    "maps": "smac_hard_gym.commands.maps",
+    "bench": "smac_hard_gym.commands.bench",
+    "demo": "smac_hard_gym.commands.demo",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="smac-hard-gym", description="SMAC-HARD on an embedded battle engine.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, module_name in COMMANDS.items():
+        module = importlib.import_module(module_name)
+        module.add_arguments(sub.add_parser(name, help=module.HELP, description=module.HELP))
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    module = importlib.import_module(COMMANDS[args.command])
+    return int(module.run(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
