@@ -103,5 +103,9 @@ class Script:
         """Write this side's commands for every battle with ``active[b]``."""
         raise NotImplementedError
 
+    def name_of(self, battle: int) -> str:
+        """Name of the script playing battle ``battle`` this episode (a mixture answers per battle)."""
+        return self.name
+
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r}>"
