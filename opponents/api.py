@@ -1,6 +1,6 @@
 """The opponent contract: a script sees a side view of a batch of battles and writes commands for its units.
 
-This is the hook of the two-player core. The core calls, for the scripted side:
+This is the hook of the two-player core (and of the duel runner). For the scripted side the caller does:
 
 - ``script.reset(view, battles, rngs)`` when the battles with indices ``battles`` start a new episode (``rngs[b]`` is
   battle b's seeded generator: every random choice a script makes comes from it);
@@ -8,8 +8,11 @@ This is the hook of the two-player core. The core calls, for the scripted side:
   ``commands.kind/target/x/y[b, slot]`` for its own slots in battles where ``active[b]`` (``CMD_NOOP`` keeps the
   unit's current order). Targets are absolute unit slots (``view.enemy_slot(k)`` converts an enemy index).
 
-Built-in scripts handle the whole batch in one call with per-battle memory kept in arrays. A trained policy, a pool of
-scripts or any callable can sit behind the same two methods.
+Built-in scripts handle the whole batch in one call with per-battle memory kept in arrays (see
+:mod:`smac_hard_gym.opponents.helpers` for the gathered :class:`~smac_hard_gym.opponents.helpers.Frame` and the
+:class:`~smac_hard_gym.opponents.helpers.Orders` command builder). A plain per-battle script is written with
+:class:`~smac_hard_gym.opponents.per_battle.PerBattleScript`. A trained policy, a pool of scripts or any callable can
+sit behind the same two methods.
 """
 
 from __future__ import annotations
@@ -18,16 +21,39 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from smac_hard_gym.engine.state import BattleState, Commands
-from smac_hard_gym.maps import MapSpec
+from smac_hard_gym.engine.state import BLUE, RED, BattleState, Commands
+from smac_hard_gym.maps import MapSpec, UnitGroup
 from smac_hard_gym.units import STATS, S
+
+__all__ = ["SideView", "Script", "ScriptError", "RED", "BLUE", "spawn_centre"]
+
+
+class ScriptError(RuntimeError):
+    """An opponent script failed: it raised, ran past its time limit or wrote an invalid command.
+
+    The message names the script, the map and the cause; ``script``, ``map_name`` and ``cause`` hold them too.
+    """
+
+    def __init__(self, script: str, map_name: str, cause: str) -> None:
+        super().__init__(f"opponent script {script!r} on map {map_name!r}: {cause}")
+        self.script = script
+        self.map_name = map_name
+        self.cause = cause
+
+
+def spawn_centre(groups: tuple[UnitGroup, ...]) -> np.ndarray:
+    """Mean spawn point of a side's unit groups, weighted by unit count (shape (2,))."""
+    points = np.array([g.spawn for g in groups], dtype=np.float64)
+    counts = np.array([g.count for g in groups], dtype=np.float64)
+    return (points * counts[:, None]).sum(axis=0) / counts.sum()
 
 
 @dataclass
 class SideView:
     """One side's view of B battles: its own units and the enemy's, as (B, n) array views (no copies).
 
-    ``episode_step[b]`` counts env steps since battle b's reset (0 on the first step).
+    ``episode_step[b]`` counts env steps since battle b's reset (0 on the first step). Own and enemy indices are
+    0-based within each side; ``own_slot``/``enemy_slot`` turn them into the absolute slots that commands use.
     """
 
     state: BattleState
@@ -36,6 +62,16 @@ class SideView:
     own: slice  # slots of this side's units
     enemy: slice  # slots of the other side's units
     episode_step: np.ndarray  # int64 (B,)
+
+    @classmethod
+    def of(cls, state: BattleState, spec: MapSpec, side: int, episode_step: np.ndarray) -> SideView:
+        """The view of ``side`` (RED or BLUE) over a state whose red slots come first."""
+        if side not in (RED, BLUE):
+            raise ValueError(f"side must be RED ({RED}) or BLUE ({BLUE}), got {side!r}")
+        n_red, n_units = spec.n_red, state.alive.shape[1]
+        red, blue = slice(0, n_red), slice(n_red, n_units)
+        own, enemy = (red, blue) if side == RED else (blue, red)
+        return cls(state=state, spec=spec, side=side, own=own, enemy=enemy, episode_step=episode_step)
 
     @property
     def n_own(self) -> int:
@@ -54,7 +90,26 @@ class SideView:
         return self.enemy.start + k
 
     def own_slot(self, k: np.ndarray | int) -> np.ndarray | int:
+        """Absolute slot of own index ``k`` (0-based within this side)."""
         return self.own.start + k
+
+    # Map geometry from this side's point of view.
+    @property
+    def own_spawn(self) -> np.ndarray:
+        """This side's spawn point (count-weighted mean of its groups), shape (2,)."""
+        return spawn_centre(self.spec.red if self.side == RED else self.spec.blue)
+
+    @property
+    def enemy_spawn(self) -> np.ndarray:
+        """The other side's spawn point, shape (2,)."""
+        return spawn_centre(self.spec.blue if self.side == RED else self.spec.red)
+
+    @property
+    def forward(self) -> np.ndarray:
+        """Unit vector from this side's spawn toward the enemy's (the direction of advance)."""
+        d = self.enemy_spawn - self.own_spawn
+        norm = float(np.hypot(d[0], d[1]))
+        return d / norm if norm > 1e-9 else np.array([1.0, 0.0])
 
     def _field(self, name: str, which: slice) -> np.ndarray:
         return getattr(self.state, name)[:, which]
@@ -75,6 +130,8 @@ class SideView:
     own_target = property(lambda self: self._field("target", self.own))
     own_health_max = property(lambda self: self._stat("health", self.own))
     own_shield_max = property(lambda self: self._stat("shield", self.own))
+    own_radius = property(lambda self: self._stat("radius", self.own))
+    own_range = property(lambda self: self._stat("range", self.own))
     # Enemy units.
     enemy_type = property(lambda self: self._field("utype", self.enemy))
     enemy_alive = property(lambda self: self._field("alive", self.enemy))
@@ -88,10 +145,17 @@ class SideView:
     enemy_target = property(lambda self: self._field("target", self.enemy))
     enemy_health_max = property(lambda self: self._stat("health", self.enemy))
     enemy_shield_max = property(lambda self: self._stat("shield", self.enemy))
+    enemy_radius = property(lambda self: self._stat("radius", self.enemy))
+    enemy_range = property(lambda self: self._stat("range", self.enemy))
 
 
 class Script:
-    """Base class of batched opponent scripts. Subclasses set ``name``/``description`` and override ``act``."""
+    """Base class of batched opponent scripts. Subclasses set ``name``/``description`` and override ``act``.
+
+    ``reset`` receives the battles that start an episode and their seeded generators; ``act`` writes commands for
+    this side's units in every active battle. ``name_of(b)`` names the script playing battle b (a mixture answers
+    per battle; it is what ``info["opponent"]`` reports).
+    """
 
     name: str = "script"
     description: str = ""

@@ -9,8 +9,8 @@ spawn on most maps, to a random point between the two marines on 2m_vs_1z, an at
 from __future__ import annotations
 
 import numpy as np
-
 from smac_hard_gym.opponents.api import Script, SideView
+
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_ATTACK_MOVE, Commands
 
 

@@ -234,7 +234,7 @@ STAT_COLUMNS = (
     "health", "shield", "armor", "damage", "hits", "bonus_damage", "bonus_attribute", "cooldown", "range",
     "hits_ground", "hits_air", "speed", "radius", "sight", "attributes", "is_air", "cliff_walk", "weapon",
     "splash_radius", "splash_length", "splash_width", "energy_start", "energy_max", "energy_regen", "heal_rate",
-    "heal_energy_per_hp", "regen", "passive", "scan_range", "shield_regen",
+    "heal_energy_per_hp", "regen", "passive", "scan_range", "shield_regen", "mover",
 )
 S = {name: i for i, name in enumerate(STAT_COLUMNS)}  # column index by name
 
@@ -256,6 +256,8 @@ def build_stats(units: tuple[UnitSpec, ...] = UNITS) -> np.ndarray:
                 value = scan_range(spec)
             elif name == "shield_regen":
                 value = SHIELD_REGEN_PER_SECOND if spec.shield > 0 else 0.0
+            elif name == "mover":  # movement plane: 0 ground, 1 cliff walker, 2 air (engine.terrain.MOVER_*)
+                value = 2.0 if spec.is_air else (1.0 if spec.cliff_walk else 0.0)
             else:
                 assert name in spec_fields
                 value = float(getattr(spec, name))

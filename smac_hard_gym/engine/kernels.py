@@ -1,27 +1,28 @@
 """Numba kernels of the battle engine: one game loop of one battle, chained over ``step_mul`` loops and run in
 parallel over the batch.
 
-Each mechanic is a small ``@njit`` function over one battle ``b``; ``step_batch`` is the only parallel kernel and
-calls them in SC2's order for every loop:
+``step_batch`` is the only parallel kernel. For each battle it takes 1-D row views of the state once per env step
+(``_rows``) and hands them to small mechanics, one function per mechanic, inlined into the loop body:
 
-1. timers: weapon cooldowns, shield regeneration after the no-damage delay, zerg regeneration, energy;
-2. targeting: ordered targets, SC2's automatic acquisition for units that acquire (idle, hold, attack-move), and the
-   response to being attacked; SMAC's ``*_RL`` units are passive and only acquire during an attack-move;
-3. movement toward the order point or the target, along the terrain's path tables (air ignores terrain);
-4. separation: overlapping units of the same plane push apart (colossi walk over small units);
-5. attacks, heals and baneling bursts, all units that were alive when the loop began acting simultaneously
-   (so two marines can kill each other in the same loop);
-6. deaths.
+1. ``_timers``: weapon cooldowns, shield regeneration after the no-damage delay, zerg regeneration, energy;
+2. ``_targeting``: ordered targets, SC2's automatic acquisition for units that acquire (idle, hold, attack-move)
+   and the response to being attacked; SMAC's ``*_RL`` units are passive and acquire only while attack-moving;
+3. ``_movement`` toward the order point or the target, along the terrain's path tables (air ignores terrain);
+4. ``_separation``: overlapping units of the same plane push apart (colossi walk over small units);
+5. ``_attacks``: shots, heals and baneling bursts; every unit alive when the loop began acts, so two marines can
+   kill each other in the same loop (SC2 resolves in sequence; simultaneity keeps the batch order-free);
+6. ``_deaths``.
 
-Simplifications against SC2 (documented in the README): damage lands when the weapon fires (no projectile travel
-or damage point), no random cooldown jitter, separation is a positional push rather than SC2's steering.
+Simplifications against SC2 (listed in the README): damage lands when the weapon fires (no projectile travel or
+damage point), no random cooldown jitter, separation is a positional push rather than SC2's steering.
+Rows are passed as explicit arguments, not as the state tuple: reading a field of a tuple costs a reference-count
+update in numba, which dominated the loop when done per unit.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit, prange
 
 from smac_hard_gym.engine.state import (
@@ -40,23 +41,16 @@ from smac_hard_gym.engine.state import (
     ORDER_IDLE,
     ORDER_MOVE,
 )
-from smac_hard_gym.engine.terrain import MOVER_AIR, MOVER_CLIFF, MOVER_GROUND
-from smac_hard_gym.units import (
-    BIO,
-    MIN_DAMAGE,
-    SHIELD_REGEN_DELAY_LOOPS,
-    WEAPON_BURST,
-    WEAPON_HEAL,
-    WEAPON_LINE_SPLASH,
-    S,
-)
+from smac_hard_gym.engine.terrain import MOVER_AIR
+from smac_hard_gym.units import BIO, MIN_DAMAGE, SHIELD_REGEN_DELAY_LOOPS, WEAPON_BURST, WEAPON_HEAL, S
+from smac_hard_gym.units import WEAPON_LINE_SPLASH as _LINE
 
 # Stat columns as compile-time constants.
 _HEALTH, _SHIELD, _ARMOR = S["health"], S["shield"], S["armor"]
 _DAMAGE, _HITS, _BONUS, _BONUS_ATTR = S["damage"], S["hits"], S["bonus_damage"], S["bonus_attribute"]
 _COOLDOWN, _RANGE, _HITS_GROUND, _HITS_AIR = S["cooldown"], S["range"], S["hits_ground"], S["hits_air"]
-_SPEED, _RADIUS, _SIGHT, _ATTR = S["speed"], S["radius"], S["sight"], S["attributes"]
-_IS_AIR, _CLIFF_WALK, _WEAPON = S["is_air"], S["cliff_walk"], S["weapon"]
+_SPEED, _RADIUS, _ATTR, _IS_AIR = S["speed"], S["radius"], S["attributes"], S["is_air"]
+_WEAPON, _MOVER = S["weapon"], S["mover"]
 _SPLASH_R, _SPLASH_L, _SPLASH_W = S["splash_radius"], S["splash_length"], S["splash_width"]
 _ENERGY_MAX, _ENERGY_REGEN = S["energy_max"], S["energy_regen"]
 _HEAL_RATE, _HEAL_COST, _REGEN = S["heal_rate"], S["heal_energy_per_hp"], S["regen"]
@@ -68,253 +62,205 @@ _BIO = BIO
 _ARRIVE = 0.05  # a move order is complete this close to its point
 _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the scan range
 _EDGE = 1e-4  # keeps positions strictly inside the map
+_INF = 1e300
+
+inline = njit(cache=True, inline="always")
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # Small helpers.
 
 
-@njit(cache=True, inline="always")
-def _mover(stats, t):
-    if stats[t, _IS_AIR] > 0:
-        return MOVER_AIR
-    if stats[t, _CLIFF_WALK] > 0:
-        return MOVER_CLIFF
-    return MOVER_GROUND
-
-
-@njit(cache=True, inline="always")
+@inline
 def _can_hit(stats, attacker_type, target_type):
     if stats[target_type, _IS_AIR] > 0:
         return stats[attacker_type, _HITS_AIR] > 0
     return stats[attacker_type, _HITS_GROUND] > 0
 
 
-@njit(cache=True, inline="always")
-def _edge_distance(x, y, stats, utype, b, i, j):
-    dx = x[b, j] - x[b, i]
-    dy = y[b, j] - y[b, i]
-    return math.sqrt(dx * dx + dy * dy) - stats[utype[b, i], _RADIUS] - stats[utype[b, j], _RADIUS]
+@inline
+def _edge_distance(x, y, utype, stats, i, j):
+    dx = x[j] - x[i]
+    dy = y[j] - y[i]
+    return math.sqrt(dx * dx + dy * dy) - stats[utype[i], _RADIUS] - stats[utype[j], _RADIUS]
 
 
-@njit(cache=True, inline="always")
-def _reach(stats, t):
-    """How close (edge to edge) a unit must be to its target to act: weapon or heal range."""
-    return stats[t, _RANGE]
+@inline
+def _within(x, y, utype, stats, i, j, reach):
+    """Edge distance <= reach, without a square root."""
+    dx = x[j] - x[i]
+    dy = y[j] - y[i]
+    limit = reach + stats[utype[i], _RADIUS] + stats[utype[j], _RADIUS]
+    return dx * dx + dy * dy <= limit * limit
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # Commands.
 
 
-@njit(cache=True, inline="always")
-def _apply_commands(b, st, kind, cmd_target, cmd_x, cmd_y, stats):
-    st_alive = st.alive
-    st_burst = st.burst
-    st_fired_at = st.fired_at
-    st_order = st.order
-    st_order_target = st.order_target
-    st_order_x = st.order_x
-    st_order_y = st.order_y
-    st_side = st.side
-    st_target = st.target
-    st_utype = st.utype
-    n = st_alive.shape[1]
+@inline
+def _apply_commands(utype, side, alive, order, order_target, order_x, order_y, target, fired_at, burst,
+                    kind, cmd_target, cmd_x, cmd_y, stats):
+    n = alive.shape[0]
     for i in range(n):
-        st_fired_at[b, i] = NO_UNIT
-        st_burst[b, i] = False
-        k = kind[b, i]
-        if k == CMD_NOOP or not st_alive[b, i]:
+        fired_at[i] = NO_UNIT
+        burst[i] = False
+        k = kind[i]
+        if k == CMD_NOOP or not alive[i]:
             continue
         if k == CMD_STOP:
-            st_order[b, i] = ORDER_IDLE
-            st_target[b, i] = NO_UNIT
+            order[i] = ORDER_IDLE
+            target[i] = NO_UNIT
         elif k == CMD_HOLD:
-            st_order[b, i] = ORDER_HOLD
-            st_target[b, i] = NO_UNIT
+            order[i] = ORDER_HOLD
+            target[i] = NO_UNIT
         elif k == CMD_MOVE or k == CMD_ATTACK_MOVE:
-            st_order[b, i] = ORDER_MOVE if k == CMD_MOVE else ORDER_ATTACK_MOVE
-            st_order_x[b, i] = cmd_x[b, i]
-            st_order_y[b, i] = cmd_y[b, i]
-            st_target[b, i] = NO_UNIT
+            order[i] = ORDER_MOVE if k == CMD_MOVE else ORDER_ATTACK_MOVE
+            order_x[i] = cmd_x[i]
+            order_y[i] = cmd_y[i]
+            target[i] = NO_UNIT
         elif k == CMD_ATTACK or k == CMD_HEAL:
-            j = cmd_target[b, i]
-            if j < 0 or j >= n or j == i or not st_alive[b, j]:
+            j = cmd_target[i]
+            if j < 0 or j >= n or j == i or not alive[j]:
                 continue
-            ti, tj = st_utype[b, i], st_utype[b, j]
-            healer = stats[ti, _WEAPON] == WEAPON_HEAL
-            if k == CMD_ATTACK and not healer and st_side[b, j] != st_side[b, i] and _can_hit(stats, ti, tj):
-                st_order[b, i] = ORDER_ATTACK
-            elif k == CMD_HEAL and healer and st_side[b, j] == st_side[b, i]:
-                st_order[b, i] = ORDER_HEAL
+            healer = stats[utype[i], _WEAPON] == WEAPON_HEAL
+            if k == CMD_ATTACK and not healer and side[j] != side[i] and _can_hit(stats, utype[i], utype[j]):
+                order[i] = ORDER_ATTACK
+            elif k == CMD_HEAL and healer and side[j] == side[i]:
+                order[i] = ORDER_HEAL
             else:
                 continue
-            st_order_target[b, i] = j
-            st_target[b, i] = j
+            order_target[i] = j
+            target[i] = j
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 1. Timers.
 
 
-@njit(cache=True, inline="always")
-def _timers(b, st, stats):
-    st_alive = st.alive
-    st_alive_at_loop = st.alive_at_loop
-    st_cooldown = st.cooldown
-    st_energy = st.energy
-    st_health = st.health
-    st_shield = st.shield
-    st_shield_wait = st.shield_wait
-    st_utype = st.utype
-    n = st_alive.shape[1]
-    for i in range(n):
-        st_alive_at_loop[b, i] = st_alive[b, i]
-        if not st_alive[b, i]:
+@inline
+def _timers(utype, alive, alive0, health, shield, energy, cooldown, shield_wait, stats):
+    for i in range(alive.shape[0]):
+        alive0[i] = alive[i]
+        if not alive[i]:
             continue
-        t = st_utype[b, i]
-        if st_cooldown[b, i] > 0.0:
-            st_cooldown[b, i] -= 1.0
+        t = utype[i]
+        if cooldown[i] > 0.0:
+            cooldown[i] -= 1.0
         regen = stats[t, _REGEN]
-        if regen > 0.0 and st_health[b, i] < stats[t, _HEALTH]:
-            st_health[b, i] = min(stats[t, _HEALTH], st_health[b, i] + regen)
+        if regen > 0.0 and health[i] < stats[t, _HEALTH]:
+            health[i] = min(stats[t, _HEALTH], health[i] + regen)
         if stats[t, _SHIELD] > 0.0:
-            if st_shield_wait[b, i] > 0.0:
-                st_shield_wait[b, i] -= 1.0
-            elif st_shield[b, i] < stats[t, _SHIELD]:
-                st_shield[b, i] = min(stats[t, _SHIELD], st_shield[b, i] + stats[t, _SHIELD_REGEN])
-        if stats[t, _ENERGY_MAX] > 0.0 and st_energy[b, i] < stats[t, _ENERGY_MAX]:
-            st_energy[b, i] = min(stats[t, _ENERGY_MAX], st_energy[b, i] + stats[t, _ENERGY_REGEN])
+            if shield_wait[i] > 0.0:
+                shield_wait[i] -= 1.0
+            elif shield[i] < stats[t, _SHIELD]:
+                shield[i] = min(stats[t, _SHIELD], shield[i] + stats[t, _SHIELD_REGEN])
+        if stats[t, _ENERGY_MAX] > 0.0 and energy[i] < stats[t, _ENERGY_MAX]:
+            energy[i] = min(stats[t, _ENERGY_MAX], energy[i] + stats[t, _ENERGY_REGEN])
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 2. Targeting.
 
 
-@njit(cache=True, inline="always")
-def _heal_wanted(st, stats, b, j):
-    st_alive = st.alive
-    st_health = st.health
-    st_utype = st.utype
-    t = st_utype[b, j]
-    return (st_alive[b, j] and stats[t, _IS_AIR] == 0 and (int(stats[t, _ATTR]) & _BIO) != 0
-            and st_health[b, j] < stats[t, _HEALTH])
+@inline
+def _heal_wanted(utype, alive, health, stats, j):
+    t = utype[j]
+    return (alive[j] and stats[t, _IS_AIR] == 0 and (int(stats[t, _ATTR]) & _BIO) != 0
+            and health[j] < stats[t, _HEALTH])
 
 
-@njit(cache=True, inline="always")
-def _acquire_heal(b, i, st, stats):
+@inline
+def _acquire_heal(i, utype, side, alive, x, y, health, target, stats):
     """Non-passive medivacs heal the nearest damaged biological ally within scan range."""
-    st_alive = st.alive
-    st_side = st.side
-    st_target = st.target
-    st_utype = st.utype
-    st_x = st.x
-    st_y = st.y
-    n = st_alive.shape[1]
-    t = st_utype[b, i]
-    cur = st_target[b, i]
-    scan = stats[t, _SCAN]
-    if cur >= 0 and _heal_wanted(st, stats, b, cur) and (
-            _edge_distance(st_x, st_y, stats, st_utype, b, i, cur) <= scan + _LEASH):
+    scan = stats[utype[i], _SCAN]
+    cur = target[i]
+    if cur >= 0 and _heal_wanted(utype, alive, health, stats, cur) and _within(
+            x, y, utype, stats, i, cur, scan + _LEASH):
         return
     best = NO_UNIT
-    best_d = np.inf
-    for j in range(n):
-        if j == i or st_side[b, j] != st_side[b, i] or not _heal_wanted(st, stats, b, j):
+    best_d = _INF
+    for j in range(alive.shape[0]):
+        if j == i or side[j] != side[i] or not _heal_wanted(utype, alive, health, stats, j):
             continue
-        d = _edge_distance(st_x, st_y, stats, st_utype, b, i, j)
-        if d <= scan and d < best_d:
-            best_d = d
-            best = j
-    st_target[b, i] = best
+        if _within(x, y, utype, stats, i, j, scan):
+            d = _edge_distance(x, y, utype, stats, i, j)
+            if d < best_d:
+                best_d = d
+                best = j
+    target[i] = best
 
 
-@njit(cache=True, inline="always")
-def _acquire_weapon(b, i, st, stats):
+@inline
+def _acquire_weapon(i, order_i, utype, side, alive, x, y, target, attacker, stats):
     """SC2's automatic targeting: keep a valid target, else prefer units attacking us, then the closest.
 
-    Idle and attack-moving units scan within ``scan_range`` and also answer the last unit that hit them (response
-    when attacked); holding units only look within weapon range. Passive (*_RL) units acquire only while
+    Idle and attack-moving units scan within ``scan_range`` and answer the last unit that hit them (response when
+    attacked); holding units look only within weapon range. Passive (*_RL) units acquire only while
     attack-moving and never respond.
     """
-    st_alive = st.alive
-    st_attacker = st.attacker
-    st_order = st.order
-    st_side = st.side
-    st_target = st.target
-    st_utype = st.utype
-    st_x = st.x
-    st_y = st.y
-    n = st_alive.shape[1]
-    t = st_utype[b, i]
-    order = st_order[b, i]
+    t = utype[i]
     passive = stats[t, _PASSIVE] > 0
-    if order == ORDER_MOVE or (passive and order != ORDER_ATTACK_MOVE):
-        st_target[b, i] = NO_UNIT
+    if order_i == ORDER_MOVE or (passive and order_i != ORDER_ATTACK_MOVE):
+        target[i] = NO_UNIT
         return
-    reach = stats[t, _RANGE] if order == ORDER_HOLD else stats[t, _SCAN]
-    leash = stats[t, _RANGE] if order == ORDER_HOLD else stats[t, _SCAN] + _LEASH
-    cur = st_target[b, i]
-    if cur >= 0 and st_alive[b, cur] and _edge_distance(st_x, st_y, stats, st_utype, b, i, cur) <= leash:
+    hold = order_i == ORDER_HOLD
+    reach = stats[t, _RANGE] if hold else stats[t, _SCAN]
+    cur = target[i]
+    if cur >= 0 and alive[cur] and _within(x, y, utype, stats, i, cur, reach if hold else reach + _LEASH):
         return
-    responder = (not passive) and order != ORDER_HOLD
+    responder = (not passive) and not hold
     best = NO_UNIT
     best_rank = 3
-    best_d = np.inf
-    for j in range(n):
-        if not st_alive[b, j] or st_side[b, j] == st_side[b, i]:
+    best_d = _INF
+    for j in range(alive.shape[0]):
+        if not alive[j] or side[j] == side[i] or not _can_hit(stats, t, utype[j]):
             continue
-        if not _can_hit(stats, t, st_utype[b, j]):
-            continue
-        d = _edge_distance(st_x, st_y, stats, st_utype, b, i, j)
-        if d <= reach:
-            rank = 0 if st_target[b, j] == i else 1
-        elif responder and st_attacker[b, i] == j:
+        if _within(x, y, utype, stats, i, j, reach):
+            rank = 0 if target[j] == i else 1
+        elif responder and attacker[i] == j:
             rank = 2
         else:
             continue
-        if rank < best_rank or (rank == best_rank and d < best_d):
+        if rank > best_rank:
+            continue
+        d = _edge_distance(x, y, utype, stats, i, j)
+        if rank < best_rank or d < best_d:
             best_rank = rank
             best_d = d
             best = j
-    st_target[b, i] = best
+    target[i] = best
 
 
-@njit(cache=True, inline="always")
-def _targeting(b, st, stats):
-    st_alive = st.alive
-    st_order = st.order
-    st_order_target = st.order_target
-    st_target = st.target
-    st_utype = st.utype
-    n = st_alive.shape[1]
-    for i in range(n):
-        if not st_alive[b, i]:
+@inline
+def _targeting(utype, side, alive, x, y, health, order, order_target, target, attacker, stats):
+    for i in range(alive.shape[0]):
+        if not alive[i]:
             continue
-        t = st_utype[b, i]
-        order = st_order[b, i]
-        if order == ORDER_ATTACK or order == ORDER_HEAL:
-            j = st_order_target[b, i]
-            if j >= 0 and st_alive[b, j]:
-                st_target[b, i] = j
+        t = utype[i]
+        o = order[i]
+        if o == ORDER_ATTACK or o == ORDER_HEAL:
+            j = order_target[i]
+            if j >= 0 and alive[j]:
+                target[i] = j
                 continue
-            st_order[b, i] = ORDER_IDLE  # the ordered target is gone: the order is complete
-            st_target[b, i] = NO_UNIT
-            order = ORDER_IDLE
+            order[i] = ORDER_IDLE  # the ordered target is gone: the order is complete
+            target[i] = NO_UNIT
+            o = ORDER_IDLE
         if stats[t, _WEAPON] == WEAPON_HEAL:
-            if stats[t, _PASSIVE] > 0 or order == ORDER_MOVE:
-                st_target[b, i] = NO_UNIT
+            if stats[t, _PASSIVE] > 0 or o == ORDER_MOVE:
+                target[i] = NO_UNIT
             else:
-                _acquire_heal(b, i, st, stats)
+                _acquire_heal(i, utype, side, alive, x, y, health, target, stats)
         elif stats[t, _DAMAGE] > 0:
-            _acquire_weapon(b, i, st, stats)
+            _acquire_weapon(i, o, utype, side, alive, x, y, target, attacker, stats)
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 3. Movement.
 
 
-@njit(cache=True, inline="always")
+@inline
 def _cell(v, size):
     c = int(v)
     if c < 0:
@@ -324,13 +270,13 @@ def _cell(v, size):
     return c
 
 
-@njit(cache=True, inline="always")
-def _waypoint(mover, x, y, gx, gy, walk, next_hop, los):
+@inline
+def _waypoint(mover, px, py, gx, gy, walk, next_hop, los):
     """Where to head now to reach (gx, gy): the goal if visible, else the farthest visible cell on the path."""
     if mover == MOVER_AIR:
         return gx, gy
     mx, my = walk.shape[1], walk.shape[2]
-    c = _cell(x, mx) * my + _cell(y, my)
+    c = _cell(px, mx) * my + _cell(py, my)
     g = _cell(gx, mx) * my + _cell(gy, my)
     if c == g or los[mover, c, g]:
         return gx, gy
@@ -347,154 +293,120 @@ def _waypoint(mover, x, y, gx, gy, walk, next_hop, los):
     return (hop // my) + 0.5, (hop % my) + 0.5
 
 
-@njit(cache=True, inline="always")
-def _commit(b, i, st, nx, ny, mover, walk):
+@inline
+def _commit(i, x, y, nx, ny, mover, walk):
     """Move unit i to (nx, ny) if its centre stays walkable, else slide along one axis, else stay."""
-    st_x = st.x
-    st_y = st.y
     mx, my = walk.shape[1], walk.shape[2]
     nx = min(max(nx, _EDGE), mx - _EDGE)
     ny = min(max(ny, _EDGE), my - _EDGE)
-    if mover == MOVER_AIR:
-        st_x[b, i] = nx
-        st_y[b, i] = ny
-        return
-    x, y = st_x[b, i], st_y[b, i]
-    if walk[mover, int(nx), int(ny)]:
-        st_x[b, i] = nx
-        st_y[b, i] = ny
-    elif walk[mover, int(nx), int(y)]:
-        st_x[b, i] = nx
-    elif walk[mover, int(x), int(ny)]:
-        st_y[b, i] = ny
+    if mover == MOVER_AIR or walk[mover, int(nx), int(ny)]:
+        x[i] = nx
+        y[i] = ny
+    elif walk[mover, int(nx), int(y[i])]:
+        x[i] = nx
+    elif walk[mover, int(x[i]), int(ny)]:
+        y[i] = ny
 
 
-@njit(cache=True, inline="always")
-def _movement(b, st, stats, walk, next_hop, los):
-    st_alive = st.alive
-    st_order = st.order
-    st_order_x = st.order_x
-    st_order_y = st.order_y
-    st_target = st.target
-    st_utype = st.utype
-    st_x = st.x
-    st_y = st.y
-    n = st_alive.shape[1]
-    for i in range(n):
-        if not st_alive[b, i]:
+@inline
+def _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, next_hop, los):
+    for i in range(alive.shape[0]):
+        if not alive[i]:
             continue
-        t = st_utype[b, i]
+        t = utype[i]
         speed = stats[t, _SPEED]
-        order = st_order[b, i]
-        if speed <= 0.0 or order == ORDER_HOLD:
+        o = order[i]
+        if speed <= 0.0 or o == ORDER_HOLD:
             continue
-        j = st_target[b, i]
+        j = target[i]
         if j >= 0:
-            if _edge_distance(st_x, st_y, stats, st_utype, b, i, j) <= _reach(stats, t):
+            if _within(x, y, utype, stats, i, j, stats[t, _RANGE]):
                 continue  # in range: stand and act
-            gx, gy = st_x[b, j], st_y[b, j]
-        elif order == ORDER_MOVE or order == ORDER_ATTACK_MOVE:
-            gx, gy = st_order_x[b, i], st_order_y[b, i]
-            dx, dy = gx - st_x[b, i], gy - st_y[b, i]
+            gx, gy = x[j], y[j]
+        elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
+            gx, gy = order_x[i], order_y[i]
+            dx, dy = gx - x[i], gy - y[i]
             if dx * dx + dy * dy <= _ARRIVE * _ARRIVE:
-                st_order[b, i] = ORDER_IDLE
+                order[i] = ORDER_IDLE
                 continue
         else:
             continue
-        mover = _mover(stats, t)
-        wx, wy = _waypoint(mover, st_x[b, i], st_y[b, i], gx, gy, walk, next_hop, los)
-        dx, dy = wx - st_x[b, i], wy - st_y[b, i]
+        mover = int(stats[t, _MOVER])
+        wx, wy = _waypoint(mover, x[i], y[i], gx, gy, walk, next_hop, los)
+        dx, dy = wx - x[i], wy - y[i]
         d = math.sqrt(dx * dx + dy * dy)
         if d < 1e-12:
             continue
         step = min(speed, d)
-        _commit(b, i, st, st_x[b, i] + dx / d * step, st_y[b, i] + dy / d * step, mover, walk)
+        _commit(i, x, y, x[i] + dx / d * step, y[i] + dy / d * step, mover, walk)
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 4. Separation.
 
 
-@njit(cache=True, inline="always")
-def _collide(stats, ti, tj):
-    """Same plane: air with air; cliff walkers (massive) only with each other; other ground units together."""
-    if stats[ti, _IS_AIR] != stats[tj, _IS_AIR]:
-        return False
-    if stats[ti, _IS_AIR] > 0:
-        return True
-    return stats[ti, _CLIFF_WALK] == stats[tj, _CLIFF_WALK]
-
-
-@njit(cache=True, inline="always")
-def _separation(b, st, stats, walk):
-    st_alive = st.alive
-    st_order = st.order
-    st_utype = st.utype
-    st_x = st.x
-    st_y = st.y
-    n = st_alive.shape[1]
+@inline
+def _separation(utype, alive, x, y, order, stats, walk):
+    """Push overlapping units of the same plane apart; units on hold or rooted are not pushed."""
+    n = alive.shape[0]
     for i in range(n):
-        if not st_alive[b, i]:
+        if not alive[i]:
             continue
-        ti = st_utype[b, i]
-        wi = 1.0 if stats[ti, _SPEED] > 0.0 and st_order[b, i] != ORDER_HOLD else 0.0
+        ti = utype[i]
+        plane_i = stats[ti, _MOVER]
+        ri = stats[ti, _RADIUS]
+        wi = 1.0 if stats[ti, _SPEED] > 0.0 and order[i] != ORDER_HOLD else 0.0
         for j in range(i + 1, n):
-            if not st_alive[b, j]:
+            if not alive[j]:
                 continue
-            tj = st_utype[b, j]
-            if not _collide(stats, ti, tj):
-                continue
-            dx = st_x[b, j] - st_x[b, i]
-            dy = st_y[b, j] - st_y[b, i]
-            rr = stats[ti, _RADIUS] + stats[tj, _RADIUS]
+            tj = utype[j]
+            rr = ri + stats[tj, _RADIUS]
+            dx = x[j] - x[i]
+            dy = y[j] - y[i]
             d2 = dx * dx + dy * dy
-            if d2 >= rr * rr:
+            if d2 >= rr * rr or stats[tj, _MOVER] != plane_i:
                 continue
-            wj = 1.0 if stats[tj, _SPEED] > 0.0 and st_order[b, j] != ORDER_HOLD else 0.0
+            wj = 1.0 if stats[tj, _SPEED] > 0.0 and order[j] != ORDER_HOLD else 0.0
             if wi + wj == 0.0:
                 continue
             d = math.sqrt(d2)
             if d < 1e-9:  # exactly stacked: split along a fixed, index-dependent direction
                 angle = 2.399963229728653 * (i * 31 + j)
-                ux, uy, d = math.cos(angle), math.sin(angle), 0.0
+                ux, uy = math.cos(angle), math.sin(angle)
             else:
                 ux, uy = dx / d, dy / d
             overlap = rr - d
             si = overlap * wi / (wi + wj)
-            sj = overlap * wj / (wi + wj)
+            sj = overlap - si
+            mover = int(plane_i)
             if si > 0.0:
-                _commit(b, i, st, st_x[b, i] - ux * si, st_y[b, i] - uy * si, _mover(stats, ti), walk)
+                _commit(i, x, y, x[i] - ux * si, y[i] - uy * si, mover, walk)
             if sj > 0.0:
-                _commit(b, j, st, st_x[b, j] + ux * sj, st_y[b, j] + uy * sj, _mover(stats, tj), walk)
+                _commit(j, x, y, x[j] + ux * sj, y[j] + uy * sj, mover, walk)
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 5. Attacks, heals, bursts.
 
 
-@njit(cache=True, inline="always")
-def _damage(b, st, stats, j, amount, source):
+@inline
+def _damage(j, amount, source, utype, health, shield, shield_wait, attacker, stats):
     """One hit of ``amount`` on unit j: shields absorb first, then armour applies, at least 0.5 on health."""
-    st_attacker = st.attacker
-    st_health = st.health
-    st_shield = st.shield
-    st_shield_wait = st.shield_wait
-    st_utype = st.utype
-    t = st_utype[b, j]
-    if st_shield[b, j] > 0.0:
-        absorbed = min(st_shield[b, j], amount)
-        st_shield[b, j] -= absorbed
+    t = utype[j]
+    if shield[j] > 0.0:
+        absorbed = min(shield[j], amount)
+        shield[j] -= absorbed
         amount -= absorbed
         if amount > 0.0:
-            st_health[b, j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
+            health[j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
     else:
-        st_health[b, j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
+        health[j] -= max(amount - stats[t, _ARMOR], _MIN_DAMAGE)
     if stats[t, _SHIELD] > 0.0:
-        st_shield_wait[b, j] = _SHIELD_DELAY
-    st_attacker[b, j] = source
+        shield_wait[j] = _SHIELD_DELAY
+    attacker[j] = source
 
 
-@njit(cache=True, inline="always")
+@inline
 def _hit_amount(stats, attacker_type, target_type):
     amount = stats[attacker_type, _DAMAGE]
     if (int(stats[target_type, _ATTR]) & int(stats[attacker_type, _BONUS_ATTR])) != 0:
@@ -502,170 +414,135 @@ def _hit_amount(stats, attacker_type, target_type):
     return amount
 
 
-@njit(cache=True, inline="always")
-def _line_splash(b, st, stats, i, j):
-    """Colossus: every hit lands on all enemy ground units touching a line across the target (length x width)."""
-    st_alive = st.alive
-    st_alive_at_loop = st.alive_at_loop
-    st_side = st.side
-    st_utype = st.utype
-    st_x = st.x
-    st_y = st.y
-    n = st_alive.shape[1]
-    ti = st_utype[b, i]
-    ux, uy = st_x[b, j] - st_x[b, i], st_y[b, j] - st_y[b, i]
+@inline
+def _line_splash(i, j, utype, side, alive0, x, y, health, shield, shield_wait, attacker, stats):
+    """Colossus: each hit lands on every enemy ground unit touching a line across the target."""
+    ti = utype[i]
+    ux, uy = x[j] - x[i], y[j] - y[i]
     norm = math.sqrt(ux * ux + uy * uy)
     if norm < 1e-9:
         ux, uy = 1.0, 0.0
     else:
         ux, uy = ux / norm, uy / norm
-    half_l = 0.5 * stats[ti, _SPLASH_L]
-    half_w = 0.5 * stats[ti, _SPLASH_W]
+    half_length = 0.5 * stats[ti, _SPLASH_L]
+    half_width = 0.5 * stats[ti, _SPLASH_W]
     hits = int(stats[ti, _HITS])
-    for k in range(n):
-        if not st_alive_at_loop[b, k] or st_side[b, k] == st_side[b, i]:
+    for k in range(alive0.shape[0]):
+        if not alive0[k] or side[k] == side[i]:
             continue
-        tk = st_utype[b, k]
+        tk = utype[k]
         if stats[tk, _IS_AIR] > 0:
             continue
-        vx, vy = st_x[b, k] - st_x[b, j], st_y[b, k] - st_y[b, j]
-        across = abs(vx * -uy + vy * ux)  # along the line, perpendicular to the shot
-        along = abs(vx * ux + vy * uy)  # along the shot, the line's thickness
+        vx, vy = x[k] - x[j], y[k] - y[j]
+        along_line = abs(-vx * uy + vy * ux)  # the line runs perpendicular to the shot
+        across_line = abs(vx * ux + vy * uy)
         rk = stats[tk, _RADIUS]
-        if k == j or (across <= half_l + rk and along <= half_w + rk):
+        if k == j or (along_line <= half_length + rk and across_line <= half_width + rk):
             amount = _hit_amount(stats, ti, tk)
             for _ in range(hits):
-                _damage(b, st, stats, k, amount, i)
+                _damage(k, amount, i, utype, health, shield, shield_wait, attacker, stats)
 
 
-@njit(cache=True, inline="always")
-def _burst(b, st, stats, i):
-    """Baneling: damage every enemy ground unit within the splash radius (of its edge), then die."""
-    st_alive = st.alive
-    st_alive_at_loop = st.alive_at_loop
-    st_burst = st.burst
-    st_health = st.health
-    st_side = st.side
-    st_utype = st.utype
-    st_x = st.x
-    st_y = st.y
-    n = st_alive.shape[1]
-    ti = st_utype[b, i]
+@inline
+def _burst(i, utype, side, alive0, x, y, health, shield, shield_wait, attacker, burst, stats):
+    """Baneling: damage every enemy ground unit whose edge is within the splash radius, then die."""
+    ti = utype[i]
     radius = stats[ti, _SPLASH_R]
-    for k in range(n):
-        if not st_alive_at_loop[b, k] or st_side[b, k] == st_side[b, i]:
+    for k in range(alive0.shape[0]):
+        if not alive0[k] or side[k] == side[i]:
             continue
-        tk = st_utype[b, k]
+        tk = utype[k]
         if stats[tk, _IS_AIR] > 0:
             continue
-        dx, dy = st_x[b, k] - st_x[b, i], st_y[b, k] - st_y[b, i]
+        dx, dy = x[k] - x[i], y[k] - y[i]
         if math.sqrt(dx * dx + dy * dy) - stats[tk, _RADIUS] <= radius:
-            _damage(b, st, stats, k, _hit_amount(stats, ti, tk), i)
-    st_health[b, i] = 0.0
-    st_burst[b, i] = True
+            _damage(k, _hit_amount(stats, ti, tk), i, utype, health, shield, shield_wait, attacker, stats)
+    health[i] = 0.0
+    burst[i] = True
 
 
-@njit(cache=True, inline="always")
-def _heal(b, st, stats, i, j):
-    st_energy = st.energy
-    st_fired_at = st.fired_at
-    st_health = st.health
-    st_utype = st.utype
-    ti, tj = st_utype[b, i], st_utype[b, j]
-    missing = stats[tj, _HEALTH] - st_health[b, j]
+@inline
+def _heal(i, j, utype, health, energy, fired_at, stats):
+    ti, tj = utype[i], utype[j]
+    missing = stats[tj, _HEALTH] - health[j]
     if missing <= 0.0 or (int(stats[tj, _ATTR]) & _BIO) == 0 or stats[tj, _IS_AIR] > 0:
         return
     cost = stats[ti, _HEAL_COST]
-    amount = min(stats[ti, _HEAL_RATE], missing, st_energy[b, i] / cost)
+    amount = min(stats[ti, _HEAL_RATE], missing, energy[i] / cost)
     if amount <= 0.0:
         return
-    st_health[b, j] += amount
-    st_energy[b, i] -= amount * cost
-    st_fired_at[b, i] = j
+    health[j] += amount
+    energy[i] -= amount * cost
+    fired_at[i] = j
 
 
-@njit(cache=True, inline="always")
-def _attacks(b, st, stats):
-    st_alive = st.alive
-    st_alive_at_loop = st.alive_at_loop
-    st_cooldown = st.cooldown
-    st_fired_at = st.fired_at
-    st_target = st.target
-    st_utype = st.utype
-    st_x = st.x
-    st_y = st.y
-    n = st_alive.shape[1]
-    for i in range(n):
-        if not st_alive_at_loop[b, i]:
+@inline
+def _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
+             fired_at, burst, stats):
+    for i in range(alive0.shape[0]):
+        if not alive0[i]:
             continue
-        j = st_target[b, i]
-        if j < 0 or not st_alive_at_loop[b, j]:
+        j = target[i]
+        if j < 0 or not alive0[j]:
             continue
-        t = st_utype[b, i]
-        if _edge_distance(st_x, st_y, stats, st_utype, b, i, j) > _reach(stats, t):
+        t = utype[i]
+        if not _within(x, y, utype, stats, i, j, stats[t, _RANGE]):
             continue
         weapon = stats[t, _WEAPON]
         if weapon == WEAPON_HEAL:
-            _heal(b, st, stats, i, j)
+            _heal(i, j, utype, health, energy, fired_at, stats)
         elif weapon == WEAPON_BURST:
-            _burst(b, st, stats, i)
-        elif st_cooldown[b, i] <= 0.0:
-            if weapon == WEAPON_LINE_SPLASH:
-                _line_splash(b, st, stats, i, j)
+            _burst(i, utype, side, alive0, x, y, health, shield, shield_wait, attacker, burst, stats)
+        elif cooldown[i] <= 0.0:
+            if weapon == _LINE:
+                _line_splash(i, j, utype, side, alive0, x, y, health, shield, shield_wait, attacker, stats)
             else:
-                amount = _hit_amount(stats, t, st_utype[b, j])
+                amount = _hit_amount(stats, t, utype[j])
                 for _ in range(int(stats[t, _HITS])):
-                    _damage(b, st, stats, j, amount, i)
-            st_cooldown[b, i] += stats[t, _COOLDOWN]
-            st_fired_at[b, i] = j
+                    _damage(j, amount, i, utype, health, shield, shield_wait, attacker, stats)
+            cooldown[i] += stats[t, _COOLDOWN]
+            fired_at[i] = j
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # 6. Deaths, and the drivers.
 
 
-@njit(cache=True, inline="always")
-def _deaths(b, st):
-    st_alive = st.alive
-    st_health = st.health
-    st_order = st.order
-    st_shield = st.shield
-    st_target = st.target
-    n = st_alive.shape[1]
-    for i in range(n):
-        if st_alive[b, i] and st_health[b, i] <= 0.0:
-            st_alive[b, i] = False
-            st_health[b, i] = 0.0
-            st_shield[b, i] = 0.0
-            st_order[b, i] = ORDER_IDLE
-            st_target[b, i] = NO_UNIT
-
-
-@njit(cache=True)
-def game_loop(b, st, stats, walk, next_hop, los):
-    """Advance battle ``b`` by one game loop."""
-    st_loop = st.loop
-    _timers(b, st, stats)
-    _targeting(b, st, stats)
-    _movement(b, st, stats, walk, next_hop, los)
-    _separation(b, st, stats, walk)
-    _attacks(b, st, stats)
-    _deaths(b, st)
-    st_loop[b] += 1
+@inline
+def _deaths(alive, health, shield, order, target):
+    for i in range(alive.shape[0]):
+        if alive[i] and health[i] <= 0.0:
+            alive[i] = False
+            health[i] = 0.0
+            shield[i] = 0.0
+            order[i] = ORDER_IDLE
+            target[i] = NO_UNIT
 
 
 @njit(cache=True)
 def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops):
-    """Apply battle b's commands, then run ``n_loops`` game loops."""
-    _apply_commands(b, st, kind, cmd_target, cmd_x, cmd_y, stats)
+    """Apply battle b's commands, then run ``n_loops`` game loops on it."""
+    utype, side, alive, alive0 = st.utype[b], st.side[b], st.alive[b], st.alive_at_loop[b]
+    x, y, health, shield, energy = st.x[b], st.y[b], st.health[b], st.shield[b], st.energy[b]
+    cooldown, shield_wait = st.cooldown[b], st.shield_wait[b]
+    order, order_target, order_x, order_y = st.order[b], st.order_target[b], st.order_x[b], st.order_y[b]
+    target, attacker, fired_at, burst = st.target[b], st.attacker[b], st.fired_at[b], st.burst[b]
+    _apply_commands(utype, side, alive, order, order_target, order_x, order_y, target, fired_at, burst,
+                    kind[b], cmd_target[b], cmd_x[b], cmd_y[b], stats)
     for _ in range(n_loops):
-        game_loop(b, st, stats, walk, next_hop, los)
+        _timers(utype, alive, alive0, health, shield, energy, cooldown, shield_wait, stats)
+        _targeting(utype, side, alive, x, y, health, order, order_target, target, attacker, stats)
+        _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, next_hop, los)
+        _separation(utype, alive, x, y, order, stats, walk)
+        _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
+                 fired_at, burst, stats)
+        _deaths(alive, health, shield, order, target)
+    st.loop[b] += n_loops
 
 
 @njit(cache=True, parallel=True)
 def step_batch(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops, active):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``."""
-    st_alive = st.alive
-    for b in prange(st_alive.shape[0]):
+    for b in prange(st.alive.shape[0]):
         if active[b]:
             step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops)
