@@ -63,6 +63,8 @@ _ARRIVE = 0.05  # a move order is complete this close to its point
 _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the scan range
 _EDGE = 1e-4  # keeps positions strictly inside the map
 _INF = 1e300
+_SETTLE_PASSES = 16  # at most this many extra separation passes after the last loop of an env step
+_SETTLED = 0.02  # ... stopping once no overlap is deeper than this
 
 inline = njit(cache=True, inline="always")
 
@@ -153,7 +155,7 @@ def _timers(utype, alive, alive0, health, shield, energy, cooldown, shield_wait,
         if stats[t, _SHIELD] > 0.0:
             if shield_wait[i] > 0.0:
                 shield_wait[i] -= 1.0
-            elif shield[i] < stats[t, _SHIELD]:
+            if shield_wait[i] <= 0.0 and shield[i] < stats[t, _SHIELD]:
                 shield[i] = min(stats[t, _SHIELD], shield[i] + stats[t, _SHIELD_REGEN])
         if stats[t, _ENERGY_MAX] > 0.0 and energy[i] < stats[t, _ENERGY_MAX]:
             energy[i] = min(stats[t, _ENERGY_MAX], energy[i] + stats[t, _ENERGY_REGEN])
@@ -347,8 +349,12 @@ def _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, 
 
 @inline
 def _separation(utype, alive, x, y, order, stats, walk):
-    """Push overlapping units of the same plane apart; units on hold or rooted are not pushed."""
+    """Push overlapping units of the same plane apart; units on hold or rooted are not pushed.
+
+    Returns the deepest overlap found (before pushing).
+    """
     n = alive.shape[0]
+    worst = 0.0
     for i in range(n):
         if not alive[i]:
             continue
@@ -376,13 +382,17 @@ def _separation(utype, alive, x, y, order, stats, walk):
             else:
                 ux, uy = dx / d, dy / d
             overlap = rr - d
-            si = overlap * wi / (wi + wj)
-            sj = overlap - si
+            worst = max(worst, overlap)
             mover = int(plane_i)
+            si = overlap * wi / (wi + wj)
             if si > 0.0:
-                _commit(i, x, y, x[i] - ux * si, y[i] - uy * si, mover, walk)
-            if sj > 0.0:
+                xi, yi = x[i], y[i]
+                _commit(i, x, y, xi - ux * si, yi - uy * si, mover, walk)
+                si = (xi - x[i]) * ux + (yi - y[i]) * uy  # what a wall let it move
+            if wj > 0.0 and overlap - si > 0.0:  # j takes the rest of the push
+                sj = overlap - si
                 _commit(j, x, y, x[j] + ux * sj, y[j] + uy * sj, mover, walk)
+    return worst
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -537,6 +547,10 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, lo
         _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
                  fired_at, burst, stats)
         _deaths(alive, health, shield, order, target)
+    # Crowds chasing one target re-compress a little every loop; settle them before anyone observes the state.
+    for _ in range(_SETTLE_PASSES):
+        if _separation(utype, alive, x, y, order, stats, walk) < _SETTLED:
+            break
     st.loop[b] += n_loops
 
 

@@ -1,0 +1,75 @@
+"""Hand-built scenarios for engine tests: an open map and a way to place units exactly."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from smac_hard_gym.engine import BattleEngine
+from smac_hard_gym.maps import parse_map
+
+
+def open_map(red: list[str], blue: list[str], name: str = "test_open"):
+    """A 32x32 fully pathable flat map with one unit per listed name (spawns far apart; tests re-place units)."""
+    doc = {
+        "name": name,
+        "episode_limit": 1000,
+        "races": {"red": "T", "blue": "T"},
+        "unit_type_bits": 0,
+        "map_type": "marines",
+        "size": [32, 32],
+        "units": {
+            "red": [{"unit": u, "count": 1, "spawn": [4.0 + 2.5 * (k % 10), 4.0 + 2.5 * (k // 10)]}
+                    for k, u in enumerate(red)],
+            "blue": [{"unit": u, "count": 1, "spawn": [4.0 + 2.5 * (k % 10), 24.0 + 2.5 * (k // 10)]}
+                     for k, u in enumerate(blue)],
+        },
+        "enemy_order": {"kind": "none"},
+        "terrain": {"pathable": ["." * 32] * 32, "cliff": ["1" * 32] * 32},
+    }
+    return parse_map(doc, name)
+
+
+def engine_with(red: list[str], blue: list[str], positions: dict[int, tuple[float, float]], batch: int = 1,
+                **engine_kwargs) -> BattleEngine:
+    """An engine on an open map with units at ``positions[slot]`` (red slots first, in the listed order)."""
+    engine = BattleEngine(open_map(red, blue), batch_size=batch, **engine_kwargs)
+    for slot, (x, y) in positions.items():
+        for b in range(batch):
+            engine.place(b, slot, x=x, y=y)
+    return engine
+
+
+def loops_until(engine: BattleEngine, condition, max_loops: int) -> int:
+    """Run single game loops until ``condition(engine)`` holds; returns how many loops ran."""
+    for n in range(1, max_loops + 1):
+        engine.step(n_loops=1)
+        engine.commands.clear()
+        if condition(engine):
+            return n
+    raise AssertionError(f"condition not reached within {max_loops} loops")
+
+
+def shot_loop(n: int, period_loops: float) -> int:
+    """Loop index (0-based, first shot at 0) of the n-th shot of a weapon with the given period."""
+    return math.ceil(n * period_loops - 1e-9)
+
+
+def overlaps(engine: BattleEngine, b: int) -> list[tuple[int, int, float]]:
+    """Pairs of alive units of one collision plane whose circles overlap, with the overlap depth."""
+    from smac_hard_gym.units import STATS, S
+
+    st = engine.state
+    alive = np.flatnonzero(st.alive[b])
+    out = []
+    for a_idx, i in enumerate(alive):
+        for j in alive[a_idx + 1:]:
+            ti, tj = st.utype[b, i], st.utype[b, j]
+            if STATS[ti, S["mover"]] != STATS[tj, S["mover"]]:
+                continue
+            depth = STATS[ti, S["radius"]] + STATS[tj, S["radius"]] - math.hypot(
+                st.x[b, i] - st.x[b, j], st.y[b, i] - st.y[b, j])
+            if depth > 0:
+                out.append((int(i), int(j), float(depth)))
+    return out

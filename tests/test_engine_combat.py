@@ -1,0 +1,180 @@
+"""Combat mechanics against hand-computed fights from the unit facts of smac_interface §8.
+
+Periods in game loops (Normal speed, 16 loops per second): marine 0.8608 s, stalker 1.87 s, zealot 1.2 s,
+marauder 1.5 s, colossus 1.5 s. A weapon that fires at loop 0 fires its n-th shot at loop ceil(n * period).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from engine_helpers import engine_with, loops_until, shot_loop
+
+from smac_hard_gym.engine import CMD_ATTACK
+
+MARINE_PERIOD = 0.8608 * 16
+STALKER_PERIOD = 1.87 * 16
+ZEALOT_PERIOD = 1.2 * 16
+MARAUDER_PERIOD = 1.5 * 16
+
+
+def _attack(engine, shooter: int, target: int) -> None:
+    engine.commands.kind[:, shooter] = CMD_ATTACK
+    engine.commands.target[:, shooter] = target
+
+
+def _death_loop(engine, slot: int, max_loops: int = 2000) -> int:
+    """0-based index of the loop in which ``slot`` dies."""
+    return loops_until(engine, lambda e: not e.state.alive[0, slot], max_loops) - 1
+
+
+def test_marine_duel_is_a_simultaneous_draw():
+    # 45 HP / 6 damage, no armour: 8 shots each; both fire first at loop 0 and die in the same loop.
+    engine = engine_with(["Marine_RL"], ["Marine"], {0: (10.0, 16.0), 1: (14.0, 16.0)})
+    _attack(engine, 0, 1)  # red is passive and must be ordered; blue acquires it (within 5.5 edge-to-edge)
+    health = []
+    for _ in range(shot_loop(7, MARINE_PERIOD) + 1):
+        engine.step(n_loops=1)
+        engine.commands.clear()
+        health.append(engine.state.health[0].copy())
+    shots = [shot_loop(n, MARINE_PERIOD) for n in range(8)]
+    assert shots[-1] == 97
+    for loop, hp in enumerate(health):
+        fired = sum(1 for s in shots if s <= loop)
+        expected = max(45.0 - 6.0 * fired, 0.0)
+        assert hp[0] == pytest.approx(expected) and hp[1] == pytest.approx(expected), loop
+    assert not engine.state.alive[0].any()
+
+
+def test_stalker_kills_zealot_in_13_shots():
+    # 13 damage (no bonus: zealot is light): shields 50 -> 37, 24, 11; 4th shot: 11 absorbed, 2 - 1 armour = 1 HP;
+    # then 12 per shot: 99 HP needs 9 more. 13 shots, the last at ceil(12 * 29.92) = 360.
+    engine = engine_with(["Zealot_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
+    engine.step(n_loops=1)
+    assert engine.state.shield[0, 0] == pytest.approx(37.0)
+    assert engine.state.health[0, 0] == pytest.approx(100.0)
+    engine.reset()
+    for slot, pos in {0: (10.0, 16.0), 1: (15.0, 16.0)}.items():
+        engine.place(0, slot, x=pos[0], y=pos[1])
+    assert _death_loop(engine, 0) == shot_loop(12, STALKER_PERIOD) == 360
+
+
+def test_zealot_two_hits_against_stalker_shields_and_armour():
+    # 8 x 2 per attack. Shields 80 absorb 10 hits (5 attacks); then 8 - 1 armour = 7 per hit on 80 HP: 12 hits
+    # (6 attacks). 11 attacks, the last at ceil(10 * 19.2) = 192.
+    engine = engine_with(["Stalker_RL"], ["Zealot"], {0: (10.0, 16.0), 1: (11.2, 16.0)})
+    engine.step(n_loops=1)
+    assert engine.state.shield[0, 0] == pytest.approx(64.0)  # two hits landed in one attack
+    engine.reset()
+    for slot, pos in {0: (10.0, 16.0), 1: (11.2, 16.0)}.items():
+        engine.place(0, slot, x=pos[0], y=pos[1])
+    assert _death_loop(engine, 0) == shot_loop(10, ZEALOT_PERIOD) == 192
+
+
+def test_zealot_hits_armour_twice_per_attack():
+    # Against a marauder (armour 1, 125 HP): 2 x (8 - 1) = 14 per attack.
+    engine = engine_with(["Marauder_RL"], ["Zealot"], {0: (10.0, 16.0), 1: (11.1, 16.0)})
+    engine.step(n_loops=1)
+    assert engine.state.health[0, 0] == pytest.approx(111.0)
+
+
+@pytest.mark.parametrize("victim, first_hit, shots_to_kill", [
+    # Marauder 10 (+10 armoured). Marine: light, armour 0 -> 10 per shot, 45 HP: 5 shots.
+    ("Marine_RL", {"health": 35.0}, 5),
+    # Stalker: armoured -> 20 per shot; shields 80 take 4; then 20 - 1 = 19 on 80 HP: 5 more. 9 shots.
+    ("Stalker_RL", {"shield": 60.0, "health": 80.0}, 9),
+])
+def test_marauder_bonus_against_armoured(victim, first_hit, shots_to_kill):
+    engine = engine_with([victim], ["Marauder"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
+    engine.step(n_loops=1)
+    for field, value in first_hit.items():
+        assert getattr(engine.state, field)[0, 0] == pytest.approx(value)
+    assert 1 + _death_loop(engine, 0) == shot_loop(shots_to_kill - 1, MARAUDER_PERIOD)  # one loop already ran
+
+
+def test_colossus_line_splash_hits_a_marine_line():
+    # Line 2.8 long, 0.3 wide, centred on the target, across the shot. Marines (r 0.375) on the line at offsets
+    # 0, +-0.8, +-1.6 touch it (1.6 <= 1.4 + 0.375); at +-2.4 they do not; one 0.8 behind the target does not
+    # (0.8 > 0.15 + 0.375). Each touched marine takes 2 x (10 + 5 light) = 30.
+    offsets = [0.0, 0.8, -0.8, 1.6, -1.6, 2.4, -2.4]
+    red = ["Marine_RL"] * (len(offsets) + 1)
+    positions = {k: (16.0, 16.0 + dy) for k, dy in enumerate(offsets)}
+    positions[len(offsets)] = (16.8, 16.0)  # behind the target, along the shot
+    positions[len(red)] = (10.0, 16.0)  # the colossus, 6 to the west: in range 7 (+ radii)
+    engine = engine_with(red, ["Colossus"], positions)
+    _attack(engine, len(red), 0)
+    engine.step(n_loops=1)
+    hp = engine.state.health[0]
+    expected = [15.0, 15.0, 15.0, 15.0, 15.0, 45.0, 45.0, 45.0]
+    np.testing.assert_allclose(hp[: len(red)], expected)
+
+
+def test_baneling_burst_kills_a_zergling_clump_and_itself():
+    # 16 (+19 light) = 35 = a zergling's life; radius 2.2 to the victim's edge (zergling radius 0.375).
+    # Edge distances: 0.3 (in melee reach 0.25 + radii), 1.0, 2.1 -> dead; 2.5 -> untouched.
+    centre = (16.0, 16.0)
+    dists = [0.3 + 0.375 + 0.375, 1.0 + 0.375, 2.1 + 0.375, 2.5 + 0.375]
+    positions = {k: (centre[0] + d, centre[1]) if k % 2 == 0 else (centre[0], centre[1] + d)
+                 for k, d in enumerate(dists)}
+    positions[len(dists)] = centre
+    engine = engine_with(["Zergling_RL"] * len(dists), ["Baneling"], positions)
+    _attack(engine, len(dists), 0)
+    engine.step(n_loops=1)
+    st = engine.state
+    assert list(st.alive[0, : len(dists)]) == [False, False, False, True]
+    assert st.health[0, 3] == pytest.approx(35.0)
+    assert not st.alive[0, len(dists)] and st.burst[0, len(dists)]
+
+
+def test_medivac_heal_rate_and_energy():
+    # 12.6 HP per Faster second = 9 HP per Normal second = 0.5625 per loop, 1 energy per 3 HP.
+    # Energy regenerates 0.7875 per Faster second = 0.5625 per Normal second.
+    engine = engine_with(["Zergling_RL"], ["Medivac", "Marine"], {0: (2.0, 2.0), 1: (16.0, 16.0), 2: (17.0, 16.0)})
+    engine.place(0, 2, health=20.0)
+    engine.step(n_loops=16)
+    st = engine.state
+    assert st.health[0, 2] == pytest.approx(29.0)
+    assert st.energy[0, 1] == pytest.approx(50.0 + 0.5625 - 3.0)
+    assert st.fired_at[0, 1] == 2  # heal link recorded for rendering
+
+
+def test_medivac_stops_when_out_of_energy():
+    engine = engine_with(["Zergling_RL"], ["Medivac", "Marine"], {0: (2.0, 2.0), 1: (16.0, 16.0), 2: (17.0, 16.0)})
+    engine.place(0, 2, health=10.0)
+    engine.place(0, 1, energy=1.0)
+    engine.step(n_loops=16)
+    st = engine.state
+    regen = 0.5625 / 16
+    # Each loop regen comes first, then the heal spends what it can: total healed = 3 x (1 + 16 x regen).
+    assert st.health[0, 2] == pytest.approx(10.0 + 3.0 * (1.0 + 16 * regen))
+    assert st.energy[0, 1] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_shields_regenerate_after_ten_seconds_without_damage():
+    # One marine shot (6) on a stalker's shield, then the marine is removed. Shields wait 160 loops (10 Normal
+    # seconds), then regenerate 2 per second = 0.125 per loop.
+    engine = engine_with(["Stalker_RL"], ["Marine"], {0: (10.0, 16.0), 1: (14.0, 16.0)})
+    engine.step(n_loops=1)
+    assert engine.state.shield[0, 0] == pytest.approx(74.0)
+    engine.place(0, 1, alive=False, health=0.0)
+    engine.step(n_loops=159)  # 160 loops since the hit (it landed in loop 0)
+    assert engine.state.shield[0, 0] == pytest.approx(74.0)
+    engine.step(n_loops=8)
+    assert engine.state.shield[0, 0] == pytest.approx(74.0 + 8 * 0.125)
+    engine.step(n_loops=16 * 4)
+    assert engine.state.shield[0, 0] == pytest.approx(80.0)
+
+
+def test_zerg_health_regeneration():
+    engine = engine_with(["Zergling_RL"], ["Marine"], {0: (4.0, 4.0), 1: (28.0, 28.0)})
+    engine.place(0, 0, health=20.0)
+    engine.step(n_loops=16)
+    assert engine.state.health[0, 0] == pytest.approx(20.0 + 0.2734)
+
+
+def test_passive_learner_units_do_not_respond():
+    # A *_RL marine being shot does nothing; a standard marine being shot answers (response when attacked).
+    engine = engine_with(["Marine_RL"], ["Marine"], {0: (10.0, 16.0), 1: (14.0, 16.0)})
+    engine.step(n_loops=32)
+    assert engine.state.health[0, 1] == pytest.approx(45.0)
+    assert engine.state.health[0, 0] < 45.0
