@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from smac_hard_gym.maps import SMAC_MAPS
+from smac_hard_gym.opponents import Script
 
 from smac_hard_gym.core import SELF_PLAY_NAME, TwoPlayerCore
 from smac_hard_gym.engine.state import BLUE, RED
 from smac_hard_gym.features import RUNNING
-from smac_hard_gym.maps import SMAC_MAPS
-from smac_hard_gym.opponents import Script
 
 
 def random_available(rng, avail):
@@ -40,18 +40,18 @@ class Idle(Script):
 def test_random_play_on_every_map(name):
     """Random available actions, both modes: no error, every chosen action available, sane outputs."""
     rng = np.random.default_rng(1)
-    core = TwoPlayerCore(name, 3, seed=3)
+    core = TwoPlayerCore(name, 2, seed=3)
     red = core.features[RED]
-    episodes = np.zeros(3, dtype=int)
+    episodes = np.zeros(2, dtype=int)
     while episodes.min() < 2:
         avail = core.avail_actions()
         acts = random_available(rng, avail)
-        assert avail[np.arange(3)[:, None], np.arange(red.n_agents), acts].all()
+        assert avail[np.arange(2)[:, None], np.arange(red.n_agents), acts].all()
         result = core.step(acts)
         assert np.isfinite(result.reward).all() and (result.reward >= 0).all()  # only_positive
         assert not (result.terminated & result.truncated).any()
         obs, state = core.observations(), core.global_state()
-        assert obs.shape == (3, red.n_agents, red.obs_size) and state.shape == (3, red.state_size)
+        assert obs.shape == (2, red.n_agents, red.obs_size) and state.shape == (2, red.state_size)
         assert np.isfinite(obs).all() and np.isfinite(state).all()
         # Dead agents can only no-op.
         dead = ~core.state.alive[:, red.own]
@@ -85,10 +85,10 @@ def _rollout(seed, steps=40):
 def test_same_seed_gives_identical_trajectories():
     first, second, other = _rollout(7), _rollout(7), _rollout(8)
     assert len(first) == len(second)
-    for (obs_a, rew_a), (obs_b, rew_b) in zip(first, second):
+    for (obs_a, rew_a), (obs_b, rew_b) in zip(first, second, strict=True):
         np.testing.assert_array_equal(obs_a, obs_b)
         np.testing.assert_array_equal(rew_a, rew_b)
-    assert any(not np.array_equal(a[0], b[0]) for a, b in zip(first, other))
+    assert any(not np.array_equal(a[0], b[0]) for a, b in zip(first, other, strict=False))
 
 
 def test_seeds_are_per_battle():

@@ -10,12 +10,12 @@ import math
 
 import numpy as np
 import pytest
+from smac_hard_gym.maps import SMAC_MAPS, load_map
 
+from smac_hard_gym.actions import available_actions
 from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import BLUE, RED
 from smac_hard_gym.features import SideFeatures, SmacOptions
-from smac_hard_gym.actions import available_actions
-from smac_hard_gym.maps import SMAC_MAPS, load_map
 from smac_hard_gym.units import UNITS
 
 # smac_interface §4: default-config sizes (n_actions, obs, state).
@@ -66,6 +66,8 @@ def formula_sizes(n_agents, n_enemies, ally_race, enemy_race, bits, o):
 @pytest.mark.parametrize("name", SMAC_MAPS)
 def test_default_sizes_match_smac_table(name):
     feats = SideFeatures(load_map(name), RED)
+    # The features' slot types are the engine's slot layout.
+    np.testing.assert_array_equal(feats.utype, BattleEngine(name).state.utype[0])
     assert (feats.n_actions, feats.obs_size, feats.state_size) == SMAC_SIZES[name]
     assert len(feats.obs_feature_names()) == feats.obs_size
     assert len(feats.state_feature_names()) == feats.state_size
@@ -73,7 +75,7 @@ def test_default_sizes_match_smac_table(name):
 
 # Eight option combinations per map: all off, all on, and six mixed (fixed, so the test is reproducible).
 _COMBOS = [dict.fromkeys(OBS_FLAGS, False), dict.fromkeys(OBS_FLAGS, True)] + [
-    dict(zip(OBS_FLAGS, bits)) for bits in itertools.islice(
+    dict(zip(OBS_FLAGS, bits, strict=True)) for bits in itertools.islice(
         (b for b in itertools.product([False, True], repeat=len(OBS_FLAGS)) if sum(b) in (3, 5)), 0, 120, 20)
 ]
 
@@ -275,7 +277,7 @@ def test_type_one_hot_schemes(name):
         own_scheme, enemy_scheme = (red_cols, blue_cols) if side == RED else (blue_cols, red_cols)
         for onehot, types, scheme in ((feats.own_onehot, feats.utype[feats.own], own_scheme),
                                       (feats.enemy_onehot, feats.utype[feats.enemy], enemy_scheme)):
-            for row, t in zip(onehot, types):
+            for row, t in zip(onehot, types, strict=True):
                 assert row.sum() == 1 and row.argmax() == scheme[UNITS[t].base], (side, UNITS[t].name)
 
 
@@ -319,7 +321,7 @@ def test_visibility_matrix(marines):
 def _mirror_engine(name, red_positions, healths):
     engine = BattleEngine(name, batch_size=1)
     n = len(red_positions)
-    for k, ((x, y), h) in enumerate(zip(red_positions, healths)):
+    for k, ((x, y), h) in enumerate(zip(red_positions, healths, strict=True)):
         engine.place(0, k, x=x, y=y, health=h)
         engine.place(0, n + k, x=32.0 - x, y=y, health=h)
     return engine
@@ -368,3 +370,15 @@ def test_mirrored_battle_gives_mirrored_observations(name, positions, healths, s
         expected[:, col] = sign * red_obs[:, names.index(source)]
     np.testing.assert_allclose(blue_obs, expected, rtol=1e-5, atol=1e-6)
     assert blue_obs.any(axis=1).all()  # every blue agent sees something: the comparison is not vacuous
+
+
+def test_options_are_validated():
+    with pytest.raises(TypeError, match="option obs_last_action must be True or False, got 'yes'"):
+        SmacOptions(obs_last_action="yes")
+    with pytest.raises(TypeError, match="option reward_win must be a finite number"):
+        SmacOptions(reward_win=float("nan"))
+    with pytest.raises(ValueError, match="move_amount must be > 0"):
+        SmacOptions(move_amount=0)
+    with pytest.raises(TypeError, match=r"unknown SMAC option\(s\) \['obs_everything'\]"):
+        SmacOptions.from_kwargs(obs_everything=True)
+    assert SmacOptions(obs_all_health=True, obs_own_health=False).own_health

@@ -106,7 +106,7 @@ class BattleEngine:
         cmd = self.commands if commands is None else commands
         act = self._all_active if active is None else np.ascontiguousarray(active, dtype=np.bool_)
         t = self.terrain
-        step_batch(self.state, cmd.kind, cmd.target, cmd.x, cmd.y, STATS, t.walk, t.next_hop, t.los,
+        step_batch(self.state, cmd.kind, cmd.target, cmd.x, cmd.y, STATS, t.walk, t.next_hop, t.los, t.open_field,
                    self.step_mul if n_loops is None else int(n_loops), act)
 
     def alive_counts(self) -> tuple[np.ndarray, np.ndarray]:

@@ -66,7 +66,7 @@ _INF = 1e300
 _SETTLE_PASSES = 16  # at most this many extra separation passes after the last loop of an env step
 _SETTLED = 0.02  # ... stopping once no overlap is deeper than this
 
-inline = njit(cache=True, inline="always")
+inline = njit(cache=True, inline="always", error_model="numpy")
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -273,9 +273,9 @@ def _cell(v, size):
 
 
 @inline
-def _waypoint(mover, px, py, gx, gy, walk, next_hop, los):
+def _waypoint(mover, px, py, gx, gy, walk, next_hop, los, open_field):
     """Where to head now to reach (gx, gy): the goal if visible, else the farthest visible cell on the path."""
-    if mover == MOVER_AIR:
+    if mover == MOVER_AIR or open_field[mover]:
         return gx, gy
     mx, my = walk.shape[1], walk.shape[2]
     c = _cell(px, mx) * my + _cell(py, my)
@@ -311,7 +311,7 @@ def _commit(i, x, y, nx, ny, mover, walk):
 
 
 @inline
-def _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, next_hop, los):
+def _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, next_hop, los, open_field):
     for i in range(alive.shape[0]):
         if not alive[i]:
             continue
@@ -334,7 +334,7 @@ def _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, 
         else:
             continue
         mover = int(stats[t, _MOVER])
-        wx, wy = _waypoint(mover, x[i], y[i], gx, gy, walk, next_hop, los)
+        wx, wy = _waypoint(mover, x[i], y[i], gx, gy, walk, next_hop, los, open_field)
         dx, dy = wx - x[i], wy - y[i]
         d = math.sqrt(dx * dx + dy * dy)
         if d < 1e-12:
@@ -529,8 +529,8 @@ def _deaths(alive, health, shield, order, target):
             target[i] = NO_UNIT
 
 
-@njit(cache=True)
-def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops):
+@njit(cache=True, error_model="numpy")
+def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops):
     """Apply battle b's commands, then run ``n_loops`` game loops on it."""
     utype, side, alive, alive0 = st.utype[b], st.side[b], st.alive[b], st.alive_at_loop[b]
     x, y, health, shield, energy = st.x[b], st.y[b], st.health[b], st.shield[b], st.energy[b]
@@ -542,7 +542,7 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, lo
     for _ in range(n_loops):
         _timers(utype, alive, alive0, health, shield, energy, cooldown, shield_wait, stats)
         _targeting(utype, side, alive, x, y, health, order, order_target, target, attacker, stats)
-        _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, next_hop, los)
+        _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, next_hop, los, open_field)
         _separation(utype, alive, x, y, order, stats, walk)
         _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
                  fired_at, burst, stats)
@@ -554,9 +554,9 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, lo
     st.loop[b] += n_loops
 
 
-@njit(cache=True, parallel=True)
-def step_batch(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops, active):
+@njit(cache=True, parallel=True, error_model="numpy")
+def step_batch(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, active):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``."""
     for b in prange(st.alive.shape[0]):
         if active[b]:
-            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, n_loops)
+            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops)

@@ -37,6 +37,7 @@ class Terrain(NamedTuple):
     next_hop: np.ndarray  # int16 (2, cells, cells): next cell toward goal, indexed [mover, goal, cell]
     los: np.ndarray  # uint8 (2, cells, cells)
     height: np.ndarray  # float64 (map_x, map_y): world height z of each cell
+    open_field: np.ndarray  # uint8 (2,): every walkable cell sees every other (no path lookups needed)
     map_x: int
     map_y: int
 
@@ -184,7 +185,12 @@ def _build(pathable_bytes: bytes, cliff_bytes: bytes, shape: tuple[int, int], ne
         hop_c, los_c = _tables(climb)
     else:
         hop_c, los_c = hop_g, los_g
+    def _open(walk: np.ndarray, los: np.ndarray) -> bool:
+        cells = np.flatnonzero(walk.ravel())
+        return bool(los[np.ix_(cells, cells)].all())
+
     return Terrain(
+        open_field=np.array([_open(ground, los_g), _open(climb, los_c)], dtype=np.uint8),
         walk=np.ascontiguousarray(np.stack([ground, climb])),
         next_hop=np.ascontiguousarray(np.stack([hop_g, hop_c])),
         los=np.ascontiguousarray(np.stack([los_g, los_c])),

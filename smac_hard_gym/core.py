@@ -1,0 +1,366 @@
+"""The two-player core: B battles of one map, a backend, SMAC features for both sides, and the opponent hook.
+
+Every environment API (``StarCraft2Env``, the gymnasium env, the vector envs) is a thin layer over this class.
+
+Public surface::
+
+    core = TwoPlayerCore(map_name, batch_size=1, *, mode="script", opponent="base", opponent_probs=None,
+                         backend="native", step_mul=8, options=SmacOptions(), seed=None, backend_options=None)
+
+    core.reset(battles=None, seed=None)          # start new episodes (all battles, or the indices given)
+    result = core.step(red_actions, blue_actions=None)   # actions: int (B, n_red) / (B, n_blue)
+    core.avail_actions(side=RED)                 # bool (B, n, n_actions)   side: RED=0 / BLUE=1
+    core.observations(side=RED, out=None)        # float32 (B, n, obs_size)
+    core.global_state(side=RED, out=None)        # float32 (B, state_size)
+    core.visibility(side=RED)                    # bool (B, n, n + m)
+    core.side_view(side)                         # opponents.api.SideView over the live state
+    core.opponent_names()                        # list[str], the opponent playing each battle's episode
+    core.stats()                                 # dict: games, wins, draws, timeouts, per-opponent table
+    core.invalidate()                            # after writing into core.state by hand (tests, scenarios)
+    core.close()
+
+Attributes: ``spec`` (MapSpec), ``batch_size``, ``mode``, ``options``, ``backend``, ``features`` (the two
+:class:`~smac_hard_gym.features.SideFeatures`, indexed by side: sizes ``obs_size``, ``state_size``,
+``n_actions``, ``n_agents``), ``rewards`` (``max_reward`` per side), ``episode_step`` (int64 (B,)), ``done`` (bool
+(B,): battles that finished and wait for a reset), ``last_action`` (per side, int64 (B, n), -1 = none), ``rngs``
+(one seeded ``np.random.Generator`` per battle), ``opponent`` (the script, None in self-play).
+
+``step`` advances the battles that are not ``done`` and returns a :class:`StepResult` of per-battle arrays:
+``reward`` float32 (B, 2) [red, blue], ``terminated`` (win, loss or draw), ``truncated`` (episode limit reached
+first), ``outcome`` (RUNNING / RED_WON / BLUE_WON / DRAW), ``dead_red`` / ``dead_blue`` counts, ``stepped`` (the
+battles advanced) and ``opponent`` names. Finished battles stay frozen until ``reset(battles)``; the core never
+resets on its own (the env layers choose their autoreset policy).
+
+Modes: ``"script"``: the opponent (a :class:`~smac_hard_gym.opponents.api.Script`, a built-in name or what
+``make_opponent`` accepts) gets ``reset(view, battles, rngs)`` at each episode start and ``act(view, commands,
+active)`` every step; ``"self-play"``: ``step`` takes blue's SMAC actions, validated and decoded like red's.
+
+Seeding: ``reset(seed=s)`` gives battle b the generator ``np.random.default_rng(s + b)`` (so battle b of a batch
+draws like a single env seeded ``s + b``); a sequence seeds the listed battles one by one; ``None`` keeps each
+battle's generator running (fresh entropy the first time).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from smac_hard_gym.actions import available_actions, check_actions, decode_actions
+from smac_hard_gym.backend import Backend, make_backend
+from smac_hard_gym.engine.state import BLUE, RED, Commands
+from smac_hard_gym.features import (
+    BLUE_WON,
+    DRAW,
+    RED_WON,
+    RUNNING,
+    Geometry,
+    RewardFunction,
+    SideFeatures,
+    SmacOptions,
+    battle_outcome,
+)
+from smac_hard_gym.maps import MapSpec, load_map
+from smac_hard_gym.opponents import Script, SideView, make_opponent
+from smac_hard_gym.units import STATS, WEAPON_HEAL, S
+
+__all__ = ["TwoPlayerCore", "StepResult", "MODES", "SELF_PLAY_NAME", "RED", "BLUE"]
+
+MODES = ("script", "self-play")
+SELF_PLAY_NAME = "self-play"  # info["opponent"] when blue is a second learner
+
+
+class StepResult(NamedTuple):
+    """What one core step produced, per battle (arrays over the batch)."""
+
+    reward: np.ndarray  # float32 (B, 2): [red, blue], each scaled by its own max_reward
+    terminated: np.ndarray  # bool (B,): the battle ended this step (win, loss or draw)
+    truncated: np.ndarray  # bool (B,): the episode limit was reached without a result
+    outcome: np.ndarray  # int8 (B,): RUNNING, RED_WON, BLUE_WON or DRAW
+    dead_red: np.ndarray  # int64 (B,): red units dead
+    dead_blue: np.ndarray  # int64 (B,): blue units dead
+    stepped: np.ndarray  # bool (B,): battles advanced by this step
+    opponent: list[str]  # opponent playing each battle
+
+    @property
+    def battle_won(self) -> np.ndarray:
+        """bool (B, 2): [red won, blue won]."""
+        return np.stack([self.outcome == RED_WON, self.outcome == BLUE_WON], axis=1)
+
+
+class _OpponentStats:
+    """Games, red wins, blue wins, draws and timeouts, per opponent name."""
+
+    def __init__(self) -> None:
+        self.table: dict[str, dict[str, int]] = {}
+
+    def record(self, name: str, outcome: int, timeout: bool) -> None:
+        row = self.table.setdefault(name, {"games": 0, "wins": 0, "losses": 0, "draws": 0, "timeouts": 0})
+        row["games"] += 1
+        row["wins"] += outcome == RED_WON
+        row["losses"] += outcome == BLUE_WON
+        row["draws"] += outcome == DRAW
+        row["timeouts"] += timeout
+
+    def summary(self) -> dict[str, Any]:
+        totals = {key: sum(row[key] for row in self.table.values())
+                  for key in ("games", "wins", "losses", "draws", "timeouts")}
+        totals["win_rate"] = totals["wins"] / totals["games"] if totals["games"] else 0.0
+        totals["opponents"] = {
+            name: {**row, "win_rate": row["wins"] / row["games"] if row["games"] else 0.0}
+            for name, row in sorted(self.table.items())
+        }
+        return totals
+
+
+class TwoPlayerCore:
+    """B battles of one map with SMAC's interface for both sides; see the module docstring for the API."""
+
+    def __init__(self, map_name: str | MapSpec, batch_size: int = 1, *, mode: str = "script",
+                 opponent: Any = "base", opponent_probs: Sequence[float] | None = None, backend: str = "native",
+                 step_mul: int = 8, options: SmacOptions | None = None, seed: int | None = None,
+                 backend_options: dict | None = None) -> None:
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        if not isinstance(batch_size, (int, np.integer)) or isinstance(batch_size, bool) or batch_size < 1:
+            raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
+        self.spec: MapSpec = load_map(map_name)
+        self.batch_size = int(batch_size)
+        self.mode = mode
+        self.options = options or SmacOptions()
+        self.features: tuple[SideFeatures, SideFeatures] = (
+            SideFeatures(self.spec, RED, self.options), SideFeatures(self.spec, BLUE, self.options))
+        self.rewards = RewardFunction(*self.features, self.options)
+        self.n_red, self.n_blue = self.features[RED].n_agents, self.features[BLUE].n_agents
+        utype = self.features[RED].utype
+        self._fighter = STATS[utype, S["weapon"]] != WEAPON_HEAL
+
+        self.opponent: Script | None = None
+        if mode == "script":
+            self.opponent = make_opponent(self.spec, opponent, opponent_probs)
+        elif opponent not in (None, "base") or opponent_probs is not None:
+            raise ValueError(f"mode 'self-play' takes blue's actions from step(); opponent={opponent!r} and "
+                             f"opponent_probs={opponent_probs!r} apply to mode 'script' only")
+
+        self.backend: Backend = make_backend(backend, self.spec, batch_size=self.batch_size, step_mul=step_mul,
+                                             **(backend_options or {}))
+        shape = self.backend.state.alive.shape
+        if shape != (self.batch_size, self.n_red + self.n_blue):
+            raise RuntimeError(f"backend {backend!r} state has shape {shape}, expected "
+                               f"({self.batch_size}, {self.n_red + self.n_blue}) for map {self.spec.name!r}")
+        b = self.batch_size
+        self.commands = Commands.empty(b, self.n_red + self.n_blue)
+        self.episode_step = np.zeros(b, dtype=np.int64)
+        self.done = np.zeros(b, dtype=bool)
+        self.last_action = (np.full((b, self.n_red), -1, dtype=np.int64),
+                            np.full((b, self.n_blue), -1, dtype=np.int64))
+        self.rngs: list[np.random.Generator | None] = [None] * b
+        self.seeds: list[int | None] = [None] * b
+        self._stats = _OpponentStats()
+        self._names: list[str] = [SELF_PLAY_NAME] * b  # opponent per battle, fixed for an episode
+        self._avail_cache: list[np.ndarray | None] = [None, None]
+        self._geo_cache: list[Geometry | None] = [None, None]
+        self._error: BaseException | None = None
+        self._closed = False
+        self.reset(seed=seed)
+
+    def __repr__(self) -> str:
+        return (f"TwoPlayerCore(map={self.spec.name!r}, batch_size={self.batch_size}, mode={self.mode!r}, "
+                f"opponent={self.opponent!r})")
+
+    @property
+    def state(self):
+        """The backend's current :class:`~smac_hard_gym.engine.state.BattleState`."""
+        return self.backend.state
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Episodes.
+
+    def reset(self, battles: Sequence[int] | np.ndarray | None = None,
+              seed: int | Sequence[int] | None = None) -> None:
+        """Start new episodes in ``battles`` (indices; all when None), seeding their generators (module docstring).
+
+        After an opponent error only a reset of every battle is accepted.
+        """
+        self._check_open()
+        rows = np.arange(self.batch_size) if battles is None else self._battle_indices(battles)
+        if len(rows) == 0:
+            return
+        if self._error is not None and len(np.unique(rows)) < self.batch_size:
+            raise RuntimeError(f"the opponent failed ({self._error!r}); reset() every battle before going on")
+        self._seed(rows, seed)
+        self.backend.reset(None if battles is None else rows)
+        self.episode_step[rows] = 0
+        self.done[rows] = False
+        self.last_action[RED][rows] = -1
+        self.last_action[BLUE][rows] = -1
+        self._invalidate()
+        if self.opponent is not None:
+            try:
+                self.opponent.reset(self.side_view(BLUE), rows, self.rngs)
+            except Exception as err:
+                self._error = err
+                raise
+            for b in rows:
+                self._names[b] = self.opponent.name_of(int(b))
+        self._error = None
+
+    def step(self, red_actions: Any, blue_actions: Any = None) -> StepResult:
+        """Advance every battle that is not done by one env step (``step_mul`` game loops)."""
+        self._check_open()
+        if self._error is not None:
+            raise RuntimeError(f"the opponent failed ({self._error!r}); call reset() before stepping again")
+        active = ~self.done
+        red = check_actions(self.features[RED], red_actions, self.avail_actions(RED), active)
+        blue = None
+        if self.mode == "self-play":
+            if blue_actions is None:
+                raise ValueError("mode 'self-play' needs blue's actions: step(red_actions, blue_actions)")
+            blue = check_actions(self.features[BLUE], blue_actions, self.avail_actions(BLUE), active)
+        elif blue_actions is not None:
+            raise ValueError("mode 'script' plays blue with the opponent script; pass red's actions only")
+
+        state = self.backend.state
+        self.commands.clear()
+        if self.opponent is not None:
+            try:
+                self.opponent.act(self.side_view(BLUE), self.commands, active)
+            except Exception as err:
+                self._error = err
+                raise
+        else:
+            decode_actions(self.features[BLUE], state, blue, self.commands, active)
+        # Red's commands are written last, so a script cannot order red's units.
+        decode_actions(self.features[RED], state, red, self.commands, active)
+
+        prev_hs = state.health + state.shield
+        prev_alive = state.alive.copy()
+        self.backend.step(self.commands, active)
+        state = self.backend.state
+        self._invalidate()
+        self.episode_step[active] += 1
+        self.last_action[RED][active] = red[active]
+        if blue is not None:
+            self.last_action[BLUE][active] = blue[active]
+
+        outcome = battle_outcome(state.alive, self._fighter, self.n_red)
+        outcome[~active] = RUNNING
+        reward = self.rewards(prev_hs, prev_alive, state, outcome)
+        reward[~active] = 0.0
+        terminated = outcome != RUNNING
+        truncated = active & ~terminated & (self.episode_step >= self.spec.episode_limit)
+        self.done |= terminated | truncated
+        names = list(self._names)
+        for b in np.flatnonzero(terminated | truncated):
+            self._stats.record(names[b], int(outcome[b]), bool(truncated[b]))
+        dead = ~state.alive
+        return StepResult(reward, terminated, truncated, outcome, dead[:, :self.n_red].sum(axis=1),
+                          dead[:, self.n_red:].sum(axis=1), active, names)
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Features.
+
+    def avail_actions(self, side: int = RED) -> np.ndarray:
+        """bool ``(B, n, n_actions)``; computed once per state (treat as read-only)."""
+        side = self._side(side)
+        if self._avail_cache[side] is None:
+            self._avail_cache[side] = available_actions(self.features[side], self.backend.state,
+                                                        self._geometry(side))
+        return self._avail_cache[side]
+
+    def observations(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:
+        """float32 ``(B, n, obs_size)`` (a new array unless ``out`` is given)."""
+        side = self._side(side)
+        return self.features[side].observations(self.backend.state, self.avail_actions(side),
+                                                self.last_action[side], self.episode_step,
+                                                geo=self._geometry(side), out=out)
+
+    def global_state(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:
+        """float32 ``(B, state_size)`` (a new array unless ``out`` is given)."""
+        side = self._side(side)
+        obs = self.observations(side) if self.options.obs_instead_of_state else None
+        return self.features[side].global_state(self.backend.state, self.last_action[side], self.episode_step,
+                                                obs=obs, out=out)
+
+    def visibility(self, side: int = RED) -> np.ndarray:
+        """bool ``(B, n, n + m)``: SMAC's visibility matrix per battle."""
+        side = self._side(side)
+        return self.features[side].visibility(self.backend.state, self._geometry(side))
+
+    def side_view(self, side: int) -> SideView:
+        """A :class:`~smac_hard_gym.opponents.api.SideView` of ``side`` over the live state."""
+        feats = self.features[self._side(side)]
+        return SideView(self.backend.state, self.spec, feats.side, feats.own, feats.enemy, self.episode_step)
+
+    def opponent_names(self) -> list[str]:
+        """The opponent playing each battle's current episode (asked of the script at each reset)."""
+        return list(self._names)
+
+    def stats(self) -> dict[str, Any]:
+        """Finished games so far: ``games``, ``wins`` (red), ``losses``, ``draws`` (both sides beaten),
+        ``timeouts``, ``win_rate`` and ``opponents``: the same per opponent name (script mode: red's record
+        against each script; self-play: under ``"self-play"``)."""
+        return self._stats.summary()
+
+    def close(self) -> None:
+        """Release the backend. Idempotent."""
+        if not self._closed:
+            self._closed = True
+            self.backend.close()
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Helpers.
+
+    def invalidate(self) -> None:
+        """Forget cached geometry and available actions: call after writing into ``state`` by hand."""
+        self._avail_cache = [None, None]
+        self._geo_cache = [None, None]
+
+    _invalidate = invalidate
+
+    def _geometry(self, side: int) -> Geometry:
+        if self._geo_cache[side] is None:
+            feats = self.features[side]
+            self._geo_cache[side] = feats.geometry(self.backend.state, allies=feats.any_healer)
+        return self._geo_cache[side]
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this core is closed")
+
+    @staticmethod
+    def _side(side: int) -> int:
+        if side not in (RED, BLUE):
+            raise ValueError(f"side must be 0 (red, the learner) or 1 (blue, the opponent), got {side!r}")
+        return int(side)
+
+    def _battle_indices(self, battles: Sequence[int] | np.ndarray) -> np.ndarray:
+        rows = np.asarray(battles)
+        if rows.dtype == bool:
+            if rows.shape != (self.batch_size,):
+                raise ValueError(f"a battle mask must have shape ({self.batch_size},), got {rows.shape}")
+            return np.flatnonzero(rows)
+        rows = rows.astype(np.int64).reshape(-1)
+        if len(rows) and (rows.min() < 0 or rows.max() >= self.batch_size):
+            raise ValueError(f"battle indices must lie in 0..{self.batch_size - 1}, got {battles!r}")
+        return rows
+
+    def _seed(self, rows: np.ndarray, seed: int | Sequence[int] | None) -> None:
+        if seed is None:
+            for b in rows:
+                if self.rngs[b] is None:
+                    self.rngs[b] = np.random.default_rng()
+            return
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + int(b) for b in rows]
+        else:
+            seeds = list(seed)
+            if len(seeds) != len(rows) or not all(
+                    isinstance(s, (int, np.integer)) and not isinstance(s, bool) for s in seeds):
+                raise ValueError(f"seed must be an int or one int per reset battle ({len(rows)}), got {seed!r}")
+        for b, s in zip(rows, seeds, strict=True):
+            if s < 0:
+                raise ValueError(f"seeds must be non-negative, got {s} for battle {b}")
+            self.seeds[b] = int(s)
+            self.rngs[b] = np.random.default_rng(int(s))
