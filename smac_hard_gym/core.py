@@ -82,6 +82,7 @@ class StepResult(NamedTuple):
     dead_blue: np.ndarray  # int64 (B,): blue units dead
     stepped: np.ndarray  # bool (B,): battles advanced by this step
     opponent: list[str]  # opponent playing each battle
+    restarted: np.ndarray  # bool (B,): the backend restarted a lost game; the episode ended without a result
 
     @property
     def battle_won(self) -> np.ndarray:
@@ -246,9 +247,13 @@ class TwoPlayerCore:
 
         outcome = battle_outcome(state.alive, self._fighter, self.n_red)
         outcome[~active] = RUNNING
+        # A backend that lost its game (sc2: protocol or connection error) restarted it: that episode ended
+        # without a result and earns nothing.
+        restarted = np.asarray(getattr(self.backend, "restarted", np.zeros(self.batch_size, bool)), bool) & active
+        outcome[restarted] = RUNNING
         reward = self.rewards(prev_hs, prev_alive, state, outcome)
-        reward[~active] = 0.0
-        terminated = outcome != RUNNING
+        reward[~active | restarted] = 0.0
+        terminated = (outcome != RUNNING) | restarted
         truncated = active & ~terminated & (self.episode_step >= self.spec.episode_limit)
         self.done |= terminated | truncated
         names = list(self._names)
@@ -256,7 +261,7 @@ class TwoPlayerCore:
             self._stats.record(names[b], int(outcome[b]), bool(truncated[b]))
         dead = ~state.alive
         return StepResult(reward, terminated, truncated, outcome, dead[:, :self.n_red].sum(axis=1),
-                          dead[:, self.n_red:].sum(axis=1), active, names)
+                          dead[:, self.n_red:].sum(axis=1), active, names, restarted)
 
     # -----------------------------------------------------------------------------------------------------------
     # Features.

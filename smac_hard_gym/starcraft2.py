@@ -9,8 +9,10 @@ and code written for SMAC-HARD runs unchanged (``mode="single"|"multi"``, ``stra
 
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -213,6 +215,8 @@ class StarCraft2Env:
             done = terminated
         if result.truncated[0] and self.continuing_episode:
             info["episode_limit"] = True
+        if result.restarted[0]:  # sc2 backend: the game was lost and restarted (SMAC returns 0, True, {} here)
+            info["restarted"] = True
         return reward, done, info
 
     @staticmethod
@@ -364,7 +368,8 @@ class StarCraft2Env:
         games = s["games"]
         stats: dict[str, Any] = {
             "battles_won": s["wins"], "battles_game": games, "battles_draw": s["timeouts"],
-            "win_rate": s["win_rate"], "timeouts": s["timeouts"], "restarts": 0, "opponents": s["opponents"],
+            "win_rate": s["win_rate"], "timeouts": s["timeouts"],
+            "restarts": int(getattr(self._core.backend, "restarts", 0)), "opponents": s["opponents"],
         }
         if self.mode == "self-play":
             stats["battles_won"] = [s["wins"], s["losses"]]
@@ -395,8 +400,15 @@ class StarCraft2Env:
         return self._renderer.render(self._core.state, 0, self._episode_steps, self._core.opponent_names()[0])
 
     def save_replay(self) -> None:
-        """SC2 replays exist only with ``backend="sc2"``; the native engine records episodes with
-        ``smac_hard_gym.render`` instead."""
+        """Save an SC2 replay into ``replay_dir`` (``backend="sc2"``); the native engine records episodes with
+        ``smac_hard_gym.render.EpisodeRecorder`` instead and warns here."""
+        backend = self._core.backend
+        if hasattr(backend, "save_replay"):
+            folder = Path(self.replay_dir or ".")
+            name = f"{self.replay_prefix or self._core.spec.name}_{time.strftime('%Y%m%d-%H%M%S')}.SC2Replay"
+            path = backend.save_replay(folder / name, battle=0)
+            print(f"replay saved to {path}")
+            return
         warnings.warn("save_replay() does nothing on the native backend; record episodes with "
                       "smac_hard_gym.render.EpisodeRecorder", stacklevel=2)
 

@@ -362,3 +362,23 @@ def test_real_game_smoke():
         assert all(np.isfinite(o).all() for o in env.get_obs())
     finally:
         env.close()
+
+
+def test_starcraft2env_reports_a_restarted_game_and_saves_replays(sc2path, tmp_path):
+    env = StarCraft2Env("3m", backend="sc2", backend_options={"sc2path": str(sc2path)}, seed=1,
+                        replay_dir=str(tmp_path / "replays"))
+    try:
+        env.reset()
+        stop = [1] * env.n_agents
+        reward, terminated, info = env.step(stop)
+        assert not terminated and "restarted" not in info
+        os.kill(env._core.backend.pids[0], signal.SIGKILL)
+        reward, terminated, info = env.step(stop)
+        assert terminated and info["restarted"] is True and reward == 0.0
+        assert env.get_stats()["restarts"] == 1
+        env.reset()
+        env.step(stop)
+        env.save_replay()
+        assert [p.suffix for p in (tmp_path / "replays").iterdir()] == [".SC2Replay"]
+    finally:
+        env.close()
