@@ -122,7 +122,9 @@ def test_colossus_climbs_the_cliff_a_zergling_takes_the_ramp():
     engine.place(0, colossus, x=16.0, y=10.0)
     engine.place(0, zergling, x=20.0, y=10.0)
     path_cells = set()
-    for k in range(1, 60):
+    steps = 0
+    for _ in range(1, 60):
+        steps += 1
         engine.commands.kind[0, zergling] = CMD_MOVE
         engine.commands.x[0, zergling], engine.commands.y[0, zergling] = goal_z
         engine.step()
@@ -135,7 +137,7 @@ def test_colossus_climbs_the_cliff_a_zergling_takes_the_ramp():
         pytest.fail("zergling never reached the high ground")
     # It went round: through a side lane (x <= 3 or x >= 28), more than twice the straight 6.5.
     assert any(cx <= 3 or cx >= 28 for cx, _ in path_cells)
-    assert k * 1.477 > 2 * 6.5
+    assert steps * 1.477 > 2 * 6.5
 
 
 def _rollout(batch: int, steps: int, seed: int, lanes: np.ndarray | None = None):
