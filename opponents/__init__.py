@@ -1,20 +1,119 @@
-"""Opponent scripts: the script API (:mod:`.api`), SMAC's default ``base`` and the built-in library."""
+"""Opponent scripts: the script API, SMAC's default ``base``, the built-in library per map, mixtures, user scripts.
+
+>>> from smac_hard_gym.opponents import make_opponent, scripts_for_map
+>>> sorted(scripts_for_map("3m"))[:3]
+['base', 'chase', 'focus_fire']
+>>> make_opponent("3m", "default").names
+['line_front', 'base']
+
+``make_opponent(spec, opponent, opponent_probs)`` accepts:
+
+- ``"default"``: the map's SMAC-HARD pool as a mixture; ``"blackbox"``: the pool without ``base``;
+- a built-in script name (``scripts_for_map(map)`` lists them, ``smac-hard-gym scripts --map M`` prints them);
+- a user script reference: ``path/to/file.py:ClassName``, ``path/to/file.py`` (one Script subclass in it) or
+  ``package.module:Name``;
+- a :class:`Script` object, or a list of any of these (a mixture).
+
+``opponent_probs`` gives one probability per script of the mixture (equal by default). User scripts run inside a
+guard (:class:`GuardedScript`) that turns exceptions, overlong calls and invalid commands into a
+:class:`ScriptError` naming the script, the map and the cause.
+"""
 
 from __future__ import annotations
 
-from smac_hard_gym.maps import MapSpec
-from smac_hard_gym.opponents.api import Script, SideView
+from collections.abc import Sequence
+
+import numpy as np
+
+from smac_hard_gym.maps import MapSpec, load_map
+from smac_hard_gym.opponents.api import Script, ScriptError, SideView
 from smac_hard_gym.opponents.base import BaseScript
+from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT, GuardedScript
+from smac_hard_gym.opponents.helpers import BatchScript, Frame, Memory, Orders
+from smac_hard_gym.opponents.library import (
+    MIXTURE_NAMES,
+    POOLS,
+    SCRIPTS,
+    ScriptInfo,
+    is_builtin,
+    pool_for_map,
+    scripts_for_map,
+)
+from smac_hard_gym.opponents.loader import is_reference, load_script
+from smac_hard_gym.opponents.mixture import Mixture, check_probs
+from smac_hard_gym.opponents.per_battle import BattleView, PerBattleScript
 
-__all__ = ["Script", "SideView", "BaseScript", "make_opponent"]
+__all__ = [
+    "Script", "SideView", "ScriptError", "BaseScript", "BatchScript", "Frame", "Memory", "Orders",
+    "PerBattleScript", "BattleView", "Mixture", "GuardedScript", "ScriptInfo", "SCRIPTS", "POOLS",
+    "make_opponent", "make_script", "scripts_for_map", "pool_for_map", "load_script",
+]
 
-_BUILTIN = {"base": BaseScript}
+OpponentSpec = str | Script | Sequence[str | Script]
 
 
-def make_opponent(spec: MapSpec, opponent: str | Script = "base") -> Script:
-    """An opponent for ``spec``: a script object, or the name of a built-in script."""
-    if isinstance(opponent, Script):
-        return opponent
-    if opponent not in _BUILTIN:
-        raise ValueError(f"unknown opponent {opponent!r} for map {spec.name!r}; allowed: {sorted(_BUILTIN)}")
-    return _BUILTIN[opponent]()
+def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = None,
+                time_limit: float | None = DEFAULT_TIME_LIMIT) -> Script:
+    """One script for map ``spec``: a built-in name, a user script reference or a Script object.
+
+    ``guard`` None wraps scripts that are not built-in (user files, user objects) in :class:`GuardedScript`;
+    True or False forces it either way.
+    """
+    spec = load_map(spec)
+    if isinstance(entry, Script):
+        script = entry
+    elif isinstance(entry, str):
+        if entry in MIXTURE_NAMES:
+            raise ValueError(f"{entry!r} names a whole pool; pass it alone as opponent={entry!r}, not in a list")
+        if entry in SCRIPTS:
+            info = SCRIPTS[entry]
+            if not info.plays(spec.name):
+                raise ValueError(f"script {entry!r} does not play map {spec.name!r} (it plays {list(info.maps)}); "
+                                 f"scripts for {spec.name}: {sorted(scripts_for_map(spec))}")
+            script = info.factory()
+        elif is_reference(entry):
+            script = load_script(entry)
+        else:
+            raise ValueError(f"unknown opponent {entry!r} for map {spec.name!r}; allowed: "
+                             f"{', '.join(MIXTURE_NAMES)}, {', '.join(sorted(scripts_for_map(spec)))}, or a user "
+                             "script 'path/to/file.py[:ClassName]' / 'module:Name'")
+    else:
+        raise TypeError(f"an opponent is a script name, a script reference or a Script object, got {entry!r}")
+    wrap = (not is_builtin(script)) if guard is None else guard
+    if wrap and not isinstance(script, GuardedScript):
+        script = GuardedScript(script, time_limit=time_limit)
+    return script
+
+
+def make_opponent(spec: MapSpec | str, opponent: OpponentSpec = "base",
+                  opponent_probs: Sequence[float] | np.ndarray | None = None, *, guard: bool | None = None,
+                  time_limit: float | None = DEFAULT_TIME_LIMIT) -> Script:
+    """The opponent for map ``spec`` (see the module docstring for what ``opponent`` may be).
+
+    A single script comes back as itself; ``"default"``, ``"blackbox"`` and lists come back as a :class:`Mixture`
+    named after the pool (or ``"mixture"``) whose ``name_of(b)`` names the script battle b plays. Raises
+    ValueError for unknown names, scripts that do not play the map, and invalid ``opponent_probs`` (one per script,
+    finite, non-negative, summing to 1).
+    """
+    spec = load_map(spec)
+    where = f" (map {spec.name!r})"
+    if isinstance(opponent, str) and opponent in MIXTURE_NAMES:
+        names = pool_for_map(spec, opponent)
+        if not names:
+            raise ValueError(f"map {spec.name!r} has an empty {opponent!r} pool")
+        probs = check_probs(opponent_probs, names, where)
+        return Mixture([make_script(spec, n, guard, time_limit) for n in names], probs, name=opponent)
+    if isinstance(opponent, (str, Script)):
+        entries: list[str | Script] = [opponent]
+    elif isinstance(opponent, Sequence) and not isinstance(opponent, (bytes, bytearray)):
+        entries = list(opponent)
+        if not entries:
+            raise ValueError(f"opponent list is empty{where}; give at least one script")
+    else:
+        raise TypeError(f"opponent must be a name, a script reference, a Script or a list of them{where}, "
+                        f"got {opponent!r}")
+    scripts = [make_script(spec, e, guard, time_limit) for e in entries]
+    probs = check_probs(opponent_probs, [s.name for s in scripts], where)
+    if len(scripts) == 1:
+        return scripts[0]
+    return Mixture(scripts, probs)

@@ -18,6 +18,7 @@ sit behind the same two methods.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -93,18 +94,18 @@ class SideView:
         """Absolute slot of own index ``k`` (0-based within this side)."""
         return self.own.start + k
 
-    # Map geometry from this side's point of view.
-    @property
+    # Map geometry from this side's point of view (fixed for the view's life).
+    @cached_property
     def own_spawn(self) -> np.ndarray:
         """This side's spawn point (count-weighted mean of its groups), shape (2,)."""
         return spawn_centre(self.spec.red if self.side == RED else self.spec.blue)
 
-    @property
+    @cached_property
     def enemy_spawn(self) -> np.ndarray:
         """The other side's spawn point, shape (2,)."""
         return spawn_centre(self.spec.blue if self.side == RED else self.spec.red)
 
-    @property
+    @cached_property
     def forward(self) -> np.ndarray:
         """Unit vector from this side's spawn toward the enemy's (the direction of advance)."""
         d = self.enemy_spawn - self.own_spawn

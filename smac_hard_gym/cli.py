@@ -12,9 +12,13 @@ import sys
 
 COMMANDS: dict[str, str] = {
     "maps": "smac_hard_gym.commands.maps",
+    "scripts": "smac_hard_gym.commands.scripts",
+    "duel": "smac_hard_gym.commands.duel",
     "bench": "smac_hard_gym.commands.bench",
     "demo": "smac_hard_gym.commands.demo",
     "replay": "smac_hard_gym.commands.replay",
+    "train": "smac_hard_gym.commands.train",
+    "eval": "smac_hard_gym.commands.eval",
 }
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from smac_hard_gym.engine.kernels import step_batch
+from smac_hard_gym.engine.kernels import step_batch, step_batch_serial
 from smac_hard_gym.engine.scenario import Layout, build_layout
 from smac_hard_gym.engine.state import (
     BLUE,
@@ -31,6 +31,8 @@ from smac_hard_gym.engine.state import (
 from smac_hard_gym.engine.terrain import Terrain, build_terrain
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.units import STATS, UNITS
+
+PARALLEL_MIN_BATCH = 16  # below this many battles a step runs on the calling thread
 
 __all__ = [
     "BattleEngine", "BattleState", "Commands", "Terrain", "Layout", "RED", "BLUE", "NO_UNIT",
@@ -106,7 +108,8 @@ class BattleEngine:
         cmd = self.commands if commands is None else commands
         act = self._all_active if active is None else np.ascontiguousarray(active, dtype=np.bool_)
         t = self.terrain
-        step_batch(self.state, cmd.kind, cmd.target, cmd.x, cmd.y, STATS, t.walk, t.next_hop, t.los, t.open_field,
+        kernel = step_batch if self.batch_size >= PARALLEL_MIN_BATCH else step_batch_serial
+        kernel(self.state, cmd.kind, cmd.target, cmd.x, cmd.y, STATS, t.walk, t.next_hop, t.los, t.open_field,
                    self.step_mul if n_loops is None else int(n_loops), act)
 
     def alive_counts(self) -> tuple[np.ndarray, np.ndarray]:

@@ -194,24 +194,13 @@ def _acquire_heal(i, utype, side, alive, x, y, health, target, stats):
 
 
 @inline
-def _acquire_weapon(i, order_i, utype, side, alive, x, y, target, attacker, stats):
-    """SC2's automatic targeting: keep a valid target, else prefer units attacking us, then the closest.
+def _scan(i, reach, responder, utype, side, alive, x, y, target, attacker, stats):
+    """SC2's automatic acquisition: the best enemy for unit i, or NO_UNIT.
 
-    Idle and attack-moving units scan within ``scan_range`` and answer the last unit that hit them (response when
-    attacked); holding units look only within weapon range. Passive (*_RL) units acquire only while
-    attack-moving and never respond.
+    Ranks: an enemy within ``reach`` that is attacking i, then any enemy within reach, then (for units that respond)
+    the last enemy that hit i wherever it is; the closest (edge to edge) within a rank.
     """
     t = utype[i]
-    passive = stats[t, _PASSIVE] > 0
-    if order_i == ORDER_MOVE or (passive and order_i != ORDER_ATTACK_MOVE):
-        target[i] = NO_UNIT
-        return
-    hold = order_i == ORDER_HOLD
-    reach = stats[t, _RANGE] if hold else stats[t, _SCAN]
-    cur = target[i]
-    if cur >= 0 and alive[cur] and _within(x, y, utype, stats, i, cur, reach if hold else reach + _LEASH):
-        return
-    responder = (not passive) and not hold
     best = NO_UNIT
     best_rank = 3
     best_d = _INF
@@ -231,11 +220,18 @@ def _acquire_weapon(i, order_i, utype, side, alive, x, y, target, attacker, stat
             best_rank = rank
             best_d = d
             best = j
-    target[i] = best
+    return best
 
 
 @inline
 def _targeting(utype, side, alive, x, y, health, order, order_target, target, attacker, stats):
+    """Who each unit engages this loop.
+
+    Ordered attacks and heals keep their target until it dies (then the order completes). Units that acquire keep a
+    valid target within their leash, else scan: idle and attack-moving units within ``scan_range`` (answering the
+    last unit that hit them), holding units within weapon range. Passive (*_RL) units acquire only while
+    attack-moving and never respond. Moving units acquire nothing.
+    """
     for i in range(alive.shape[0]):
         if not alive[i]:
             continue
@@ -249,13 +245,18 @@ def _targeting(utype, side, alive, x, y, health, order, order_target, target, at
             order[i] = ORDER_IDLE  # the ordered target is gone: the order is complete
             target[i] = NO_UNIT
             o = ORDER_IDLE
-        if stats[t, _WEAPON] == WEAPON_HEAL:
-            if stats[t, _PASSIVE] > 0 or o == ORDER_MOVE:
-                target[i] = NO_UNIT
-            else:
-                _acquire_heal(i, utype, side, alive, x, y, health, target, stats)
+        passive = stats[t, _PASSIVE] > 0
+        if o == ORDER_MOVE or (passive and o != ORDER_ATTACK_MOVE):
+            target[i] = NO_UNIT
+        elif stats[t, _WEAPON] == WEAPON_HEAL:
+            _acquire_heal(i, utype, side, alive, x, y, health, target, stats)
         elif stats[t, _DAMAGE] > 0:
-            _acquire_weapon(i, o, utype, side, alive, x, y, target, attacker, stats)
+            hold = o == ORDER_HOLD
+            reach = stats[t, _RANGE] if hold else stats[t, _SCAN]
+            cur = target[i]
+            if cur >= 0 and alive[cur] and _within(x, y, utype, stats, i, cur, reach if hold else reach + _LEASH):
+                continue
+            target[i] = _scan(i, reach, (not passive) and not hold, utype, side, alive, x, y, target, attacker, stats)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -273,10 +274,8 @@ def _cell(v, size):
 
 
 @inline
-def _waypoint(mover, px, py, gx, gy, walk, next_hop, los, open_field):
-    """Where to head now to reach (gx, gy): the goal if visible, else the farthest visible cell on the path."""
-    if mover == MOVER_AIR or open_field[mover]:
-        return gx, gy
+def _waypoint(mover, px, py, gx, gy, walk, next_hop, los):
+    """Where a walker heads now to reach (gx, gy): the goal if visible, else the farthest visible path cell."""
     mx, my = walk.shape[1], walk.shape[2]
     c = _cell(px, mx) * my + _cell(py, my)
     g = _cell(gx, mx) * my + _cell(gy, my)
@@ -296,18 +295,19 @@ def _waypoint(mover, px, py, gx, gy, walk, next_hop, los, open_field):
 
 
 @inline
-def _commit(i, x, y, nx, ny, mover, walk):
-    """Move unit i to (nx, ny) if its centre stays walkable, else slide along one axis, else stay."""
+def _slide(px, py, nx, ny, mover, walk):
+    """Where a unit at (px, py) heading to (nx, ny) ends up: there if its centre stays walkable, else sliding
+    along one axis, else staying put."""
     mx, my = walk.shape[1], walk.shape[2]
     nx = min(max(nx, _EDGE), mx - _EDGE)
     ny = min(max(ny, _EDGE), my - _EDGE)
     if mover == MOVER_AIR or walk[mover, int(nx), int(ny)]:
-        x[i] = nx
-        y[i] = ny
-    elif walk[mover, int(nx), int(y[i])]:
-        x[i] = nx
-    elif walk[mover, int(x[i]), int(ny)]:
-        y[i] = ny
+        return nx, ny
+    if walk[mover, int(nx), int(py)]:
+        return nx, py
+    if walk[mover, int(px), int(ny)]:
+        return px, ny
+    return px, py
 
 
 @inline
@@ -334,13 +334,16 @@ def _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, 
         else:
             continue
         mover = int(stats[t, _MOVER])
-        wx, wy = _waypoint(mover, x[i], y[i], gx, gy, walk, next_hop, los, open_field)
+        if mover == MOVER_AIR or open_field[mover]:  # checked here: even an early-returning call costs
+            wx, wy = gx, gy
+        else:
+            wx, wy = _waypoint(mover, x[i], y[i], gx, gy, walk, next_hop, los)
         dx, dy = wx - x[i], wy - y[i]
         d = math.sqrt(dx * dx + dy * dy)
         if d < 1e-12:
             continue
         step = min(speed, d)
-        _commit(i, x, y, x[i] + dx / d * step, y[i] + dy / d * step, mover, walk)
+        x[i], y[i] = _slide(x[i], y[i], x[i] + dx / d * step, y[i] + dy / d * step, mover, walk)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -387,11 +390,11 @@ def _separation(utype, alive, x, y, order, stats, walk):
             si = overlap * wi / (wi + wj)
             if si > 0.0:
                 xi, yi = x[i], y[i]
-                _commit(i, x, y, xi - ux * si, yi - uy * si, mover, walk)
+                x[i], y[i] = _slide(xi, yi, xi - ux * si, yi - uy * si, mover, walk)
                 si = (xi - x[i]) * ux + (yi - y[i]) * uy  # what a wall let it move
             if wj > 0.0 and overlap - si > 0.0:  # j takes the rest of the push
                 sj = overlap - si
-                _commit(j, x, y, x[j] + ux * sj, y[j] + uy * sj, mover, walk)
+                x[j], y[j] = _slide(x[j], y[j], x[j] + ux * sj, y[j] + uy * sj, mover, walk)
     return worst
 
 
@@ -558,5 +561,13 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, lo
 def step_batch(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, active):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``."""
     for b in prange(st.alive.shape[0]):
+        if active[b]:
+            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops)
+
+
+@njit(cache=True, error_model="numpy")
+def step_batch_serial(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, active):
+    """``step_batch`` on the calling thread: small batches would pay more to wake the thread pool than they gain."""
+    for b in range(st.alive.shape[0]):
         if active[b]:
             step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops)

@@ -46,15 +46,16 @@ def _walkable(spec: MapSpec, x: float, y: float, radius: float, is_air: bool) ->
 
 
 def _place(spec: MapSpec, point: tuple[float, float], radius: float, is_air: bool,
-           placed: list[tuple[float, float, float, bool]]) -> tuple[float, float]:
+           placed: list[tuple[float, float, float, bool]], mirror: bool) -> tuple[float, float]:
     px, py = point
+    flip = -1.0 if mirror else 1.0  # blue packs as red's mirror image, so neither side starts a step ahead
     # Candidate rings every half radius; on each ring, angles spaced about one radius apart.
     for ring in range(0, 80):
         dist = ring * radius * 0.5
         n_angles = 1 if ring == 0 else max(6, int(2 * math.pi * dist / radius))
         for k in range(n_angles):
             angle = 2 * math.pi * k / n_angles + (0.5 * math.pi)
-            x, y = px + dist * math.cos(angle), py + dist * math.sin(angle)
+            x, y = px + flip * dist * math.cos(angle), py + dist * math.sin(angle)
             if not _walkable(spec, x, y, radius, is_air):
                 continue
             if all(air != is_air or math.hypot(x - ox, y - oy) >= radius + orad + _GAP
@@ -76,7 +77,7 @@ def build_layout(spec: MapSpec) -> Layout:
             t = unit_index(group.unit)
             u = UNITS[t]
             for _ in range(group.count):
-                x, y = _place(spec, group.spawn, u.radius, u.is_air, placed)
+                x, y = _place(spec, group.spawn, u.radius, u.is_air, placed, mirror=side == BLUE)
                 placed.append((x, y, u.radius, u.is_air))
                 units.append((side, t, x, y))
     red = [u for u in units if u[0] == RED]

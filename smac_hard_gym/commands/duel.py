@@ -1,0 +1,48 @@
+"""``smac-hard-gym duel``: two scripts fight on the embedded engine; prints win and draw rates."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "pit two opponent scripts against each other on a map and print win/draw rates"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--map", required=True, help="map name (see `smac-hard-gym maps`)")
+    parser.add_argument("--red", required=True,
+                        help="script for the red (learner's) side: a name, default, blackbox, file.py[:Class] or "
+                             "module:Name; red units are SMAC's passive *_RL units, so it must give orders")
+    parser.add_argument("--blue", required=True, help="script for the blue (opponent's) side, same forms")
+    parser.add_argument("--episodes", type=int, default=20, help="episodes to play (default 20)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the scripts' per-episode generators")
+    parser.add_argument("--batch", type=int, default=None,
+                        help="battles run at once (default: all episodes, at most 64)")
+    parser.add_argument("--red-probs", type=float, nargs="+", default=None, help="mixture weights for --red")
+    parser.add_argument("--blue-probs", type=float, nargs="+", default=None, help="mixture weights for --blue")
+    parser.add_argument("--json", default=None, metavar="PATH", help="also write the result as JSON")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from smac_hard_gym.opponents.duel import run_duel
+
+    batch = args.batch if args.batch is not None else min(args.episodes, 64)
+    print(f"duel on {args.map}: red={args.red} blue={args.blue} episodes={args.episodes} seed={args.seed} "
+          f"batch={batch}")
+    result = run_duel(args.map, args.red, args.blue, episodes=args.episodes, seed=args.seed, batch_size=args.batch,
+                      red_probs=args.red_probs, blue_probs=args.blue_probs, progress=not args.no_progress)
+    print(f"red wins   {result.red_win_rate:7.1%}  ({result.red_wins})")
+    print(f"blue wins  {result.blue_win_rate:7.1%}  ({result.blue_wins})")
+    print(f"draws      {result.draw_rate:7.1%}  ({result.draws}, {result.timeouts} at the episode limit)")
+    print(f"mean episode length {result.mean_steps:.1f} steps")
+    if len(result.by_script) > 1:
+        for pairing, counts in sorted(result.by_script.items()):
+            print(f"  {pairing}: {counts['games']} games, red {counts['red_wins']}, blue {counts['blue_wins']}, "
+                  f"draws {counts['draws']}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(result.to_dict(), fh, indent=1)
+        print(f"wrote {args.json}")
+    return 0

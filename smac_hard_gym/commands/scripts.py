@@ -1,0 +1,58 @@
+"""``smac-hard-gym scripts [--map M]``: list the built-in opponent scripts with one-line descriptions."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "list the built-in opponent scripts (all, or those that play one map) and the per-map pools"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--map", default=None, help="only the scripts that play this map, with its pools")
+    parser.add_argument("--json", action="store_true", help="print machine-readable JSON")
+
+
+def _catalogue(map_name: str | None) -> dict:
+    from smac_hard_gym.maps import list_maps, load_map
+    from smac_hard_gym.opponents import SCRIPTS, pool_for_map, scripts_for_map
+
+    if map_name is not None:
+        spec = load_map(map_name)
+        scripts = scripts_for_map(spec)
+        return {"map": spec.name, "default": list(pool_for_map(spec, "default")),
+                "blackbox": list(pool_for_map(spec, "blackbox")),
+                "scripts": {n: {"description": i.description, "maps": None if i.maps is None else list(i.maps)}
+                            for n, i in scripts.items()}}
+    return {"scripts": {n: {"description": i.description, "maps": None if i.maps is None else list(i.maps)}
+                        for n, i in SCRIPTS.items()},
+            "default": {m: list(pool_for_map(m, "default")) for m in list_maps()}}
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    cat = _catalogue(args.map)
+    if args.json:
+        print(json.dumps(cat, indent=1))
+        return 0
+    scripts = cat["scripts"]
+    width = max(len(n) for n in scripts) + 2
+    if args.map is not None:
+        print(f"map {cat['map']}: default = {', '.join(cat['default'])}; blackbox = {', '.join(cat['blackbox'])}")
+        for name, info in scripts.items():
+            mark = "*" if name in cat["default"] else " "
+            print(f" {mark} {name:<{width}}{info['description']}")
+        print("(* in the default pool; also accepted: default, blackbox, 'file.py[:Class]', 'module:Name')")
+        return 0
+    print("generic scripts (every map):")
+    for name, info in scripts.items():
+        if info["maps"] is None:
+            print(f"  {name:<{width}}{info['description']}")
+    print("map scripts (SMAC-HARD strategies):")
+    for name, info in scripts.items():
+        if info["maps"] is not None:
+            print(f"  {name:<{width}}{info['description']}  [{', '.join(info['maps'])}]")
+    print("default pools (blackbox = the same without base):")
+    for map_name, pool in cat["default"].items():
+        print(f"  {map_name:<18}{', '.join(pool)}")
+    return 0

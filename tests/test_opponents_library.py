@@ -1,0 +1,287 @@
+"""The built-in library: every script runs on its maps for both sides with valid commands, beats a side that only
+stops, and behaves as described in constructed battles (positions and health set by hand).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from smac_hard_gym.engine import BattleEngine
+from smac_hard_gym.engine.state import (
+    BLUE,
+    CMD_ATTACK,
+    CMD_ATTACK_MOVE,
+    CMD_HEAL,
+    CMD_MOVE,
+    CMD_NOOP,
+    ORDER_ATTACK_MOVE,
+    RED,
+    Commands,
+)
+from smac_hard_gym.maps import list_maps
+from smac_hard_gym.opponents import POOLS, SideView, make_opponent, scripts_for_map
+from smac_hard_gym.opponents.duel import run_duel
+from smac_hard_gym.units import STATS, S
+
+
+class Battle:
+    """A small hand-driven batch: an engine, both side views and guarded scripts for each side."""
+
+    def __init__(self, map_name: str, red: str = "stop", blue: str = "base", batch: int = 1, seed: int = 0,
+                 engine: BattleEngine | None = None):
+        self.engine = engine if engine is not None else BattleEngine(map_name, batch_size=batch)
+        self.engine.reset()
+        self.state = self.engine.state
+        self.n_red = self.engine.n_red
+        self.steps = np.zeros(batch, dtype=np.int64)
+        self.views = {side: SideView.of(self.state, self.engine.spec, side, self.steps) for side in (RED, BLUE)}
+        self.scripts = {RED: make_opponent(map_name, red, guard=True), BLUE: make_opponent(map_name, blue, guard=True)}
+        self.commands = Commands.empty(batch, self.engine.n_units)
+        self.active = np.ones(batch, dtype=bool)
+        self.rngs = [np.random.default_rng([seed, b]) for b in range(batch)]
+
+    def reset_scripts(self):
+        for side in (RED, BLUE):
+            self.scripts[side].reset(self.views[side], np.arange(len(self.active)), self.rngs)
+
+    def act(self):
+        self.commands.clear()
+        for side in (RED, BLUE):
+            self.scripts[side].act(self.views[side], self.commands, self.active)
+
+    def step(self, n: int = 1):
+        for _ in range(n):
+            self.act()
+            self.engine.step(self.commands, self.active)
+            self.steps += 1
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Every script, every map it plays, both sides: valid commands (the guard checks every command) for a few steps.
+
+
+@pytest.mark.parametrize("map_name", list_maps())
+def test_every_script_runs_on_its_maps_for_both_sides(map_name):
+    engine = BattleEngine(map_name, batch_size=2)  # built once per map (terrain tables), reset per script
+    for name in scripts_for_map(map_name):
+        for red, blue in ((("stop", name)), (name, "base")):
+            battle = Battle(map_name, red=red, blue=blue, batch=2, engine=engine)
+            battle.reset_scripts()
+            battle.step(6)
+            assert np.isfinite(battle.state.x).all()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Competence: each script of each map's pool beats a learner that only stops.
+
+_POOL_CASES = [(m, s) for m in POOLS for s in POOLS[m]]
+
+
+@pytest.mark.parametrize("map_name, script", _POOL_CASES, ids=[f"{m}-{s}" for m, s in _POOL_CASES])
+def test_pool_script_beats_a_side_that_only_stops(map_name, script):
+    if map_name == "2s_vs_1sc":
+        # The spine crawler is rooted and the stalkers spawn about 10 from it, beyond its reach of 7 + radii
+        # (8.75): against stalkers that never move no script can win (the battle would run to the limit of 300
+        # steps). Check the cause instead: the stalkers stay unharmed.
+        battle = Battle(map_name, red="stop", blue=script)
+        battle.reset_scripts()
+        battle.step(20)
+        st = battle.state
+        np.testing.assert_allclose(st.health[0, :2] + st.shield[0, :2], 160.0)
+        return
+    result = run_duel(map_name, red="stop", blue=script, episodes=2, seed=0, guard=True)
+    assert result.blue_wins == 2, result.summary()
+
+
+def test_generic_scripts_beat_a_side_that_only_stops():
+    for name in ("nearest", "weakest", "kite", "retreat_wounded", "focus_fire", "round_robin", "chase"):
+        result = run_duel("3s5z", red="stop", blue=name, episodes=1, guard=True)
+        assert result.blue_wins == 1, result.summary()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Behaviour in constructed battles.
+
+
+def _first_death(battle: Battle, slots: slice, limit: int = 120) -> int:
+    """Step until a unit in ``slots`` dies; return its slot."""
+    for _ in range(limit):
+        battle.step()
+        dead = np.flatnonzero(~battle.state.alive[0, slots])
+        if dead.size:
+            assert dead.size == 1
+            return int(slots.start + dead[0])
+    raise AssertionError("nobody died")
+
+
+def _weak_far_marine(blue: str) -> Battle:
+    battle = Battle("3m", red="stop", blue=blue)
+    # Red marines: two healthy ones close to blue, a weakened one further back.
+    battle.engine.place(0, 0, x=17.0, y=15.0, health=45.0)
+    battle.engine.place(0, 1, x=17.0, y=17.0, health=45.0)
+    battle.engine.place(0, 2, x=12.0, y=16.0, health=20.0)
+    battle.reset_scripts()
+    return battle
+
+
+def test_weakest_kills_the_lowest_health_unit_first():
+    assert _first_death(_weak_far_marine("weakest"), slice(0, 3)) == 2
+    # Sanity check of the scenario: attacking the nearest kills one of the close, healthy marines first.
+    assert _first_death(_weak_far_marine("nearest"), slice(0, 3)) in (0, 1)
+
+
+def _time_in_zealot_reach(red: str, steps: int = 40) -> int:
+    """Steps (of ``steps``) at which some zealot stands within its melee reach of a stalker (3s_vs_3z, red
+    stalkers driven by ``red``, blue zealots chasing with ``nearest``)."""
+    battle = Battle("3s_vs_3z", red=red, blue="nearest")
+    battle.reset_scripts()
+    st, n = battle.state, battle.n_red
+    reach = STATS[st.utype[0, n:], S["range"]] + 1e-6  # zealot melee reach, edge to edge
+    radii_red, radii_blue = STATS[st.utype[0, :n], S["radius"]], STATS[st.utype[0, n:], S["radius"]]
+    count = 0
+    for _ in range(steps):
+        battle.step()
+        edge = (np.hypot(st.x[0, :n, None] - st.x[0, None, n:], st.y[0, :n, None] - st.y[0, None, n:])
+                - radii_red[:, None] - radii_blue[None, :])
+        both = st.alive[0, :n, None] & st.alive[0, None, n:]
+        count += bool((both & (edge <= reach[None, :])).any())
+    return count
+
+
+def test_kite_keeps_stalkers_out_of_zealot_reach_longer_than_nearest():
+    kite, nearest = _time_in_zealot_reach("kite"), _time_in_zealot_reach("nearest")
+    assert kite < nearest, (kite, nearest)
+
+
+def test_base_attack_moves_to_the_learner_spawn_then_lets_automatic_targeting_retarget():
+    battle = Battle("3m", red="stop", blue="base")
+    battle.reset_scripts()
+    n = battle.n_red
+    battle.act()
+    np.testing.assert_array_equal(battle.commands.kind[0, n:], [CMD_ATTACK_MOVE] * 3)
+    np.testing.assert_allclose(battle.commands.x[0, n:], 9.0)  # SMAC: attack-move to "Team 1" (9, 16)
+    np.testing.assert_allclose(battle.commands.y[0, n:], 16.0)
+    battle.engine.step(battle.commands, battle.active)
+    battle.steps += 1
+    st = battle.state
+    assert (st.order[0, n:] == ORDER_ATTACK_MOVE).all()
+    targets_seen: set[int] = set()
+    for _ in range(60):
+        battle.act()
+        assert (battle.commands.kind[0, n:] == CMD_NOOP).all()  # after the first step base sends nothing
+        battle.engine.step(battle.commands, battle.active)
+        battle.steps += 1
+        tgt = st.target[0, n:][st.alive[0, n:]]
+        for t in tgt[tgt >= 0]:
+            assert st.alive[0, t] and t < n  # engaged targets are alive learner units
+            targets_seen.add(int(t))
+        if not st.alive[0, :n].any():
+            break
+    assert not st.alive[0, :n].any()
+    assert len(targets_seen) == 3  # after each kill the blue marines took a new target
+
+
+def test_base_on_2m_vs_1z_attack_moves_to_a_seeded_point_between_the_marines():
+    battle = Battle("2m_vs_1z", red="stop", blue="base", batch=3)
+    battle.reset_scripts()
+    battle.act()
+    x, y = battle.commands.x[:, 2], battle.commands.y[:, 2]
+    np.testing.assert_allclose(y, 12.0)  # the segment (13, 12) - (19, 12)
+    assert ((x >= 13.0) & (x <= 19.0)).all() and len(set(np.round(x, 6))) == 3
+    again = Battle("2m_vs_1z", red="stop", blue="base", batch=3)
+    again.reset_scripts()
+    again.act()
+    np.testing.assert_array_equal(again.commands.x[:, 2], x)  # same seeds, same points
+
+
+def test_weakest_spine_crawler_only_targets_stalkers_in_reach():
+    battle = Battle("2s_vs_1sc", red="stop", blue="weakest")
+    crawler = 2  # (13.92, 20.04), reach 7 + 1.125 + 0.625 = 8.75 between centres
+    battle.engine.place(0, 0, x=13.92, y=13.0, health=80.0, shield=0.0)  # 7.04 away, in reach
+    battle.engine.place(0, 1, x=13.92, y=10.5, health=5.0, shield=0.0)  # 9.54 away, weaker but out of reach
+    battle.reset_scripts()
+    battle.act()
+    assert battle.commands.kind[0, crawler] == CMD_ATTACK and battle.commands.target[0, crawler] == 0
+    battle.engine.place(0, 1, y=14.0)  # now both in reach: the weaker one
+    battle.act()
+    assert battle.commands.target[0, crawler] == 1
+
+
+def test_line_front_forms_smac_hards_line_then_focuses_the_frontmost_enemy():
+    battle = Battle("3m", red="stop", blue="line_front")
+    battle.reset_scripts()
+    battle.act()
+    n = battle.n_red
+    assert (battle.commands.kind[0, n:] == CMD_MOVE).all()
+    np.testing.assert_allclose(battle.commands.x[0, n:], 25.0)  # SMAC-HARD: a vertical line at x=25
+    np.testing.assert_allclose(sorted(battle.commands.y[0, n:]), [15.0, 16.0, 17.0])  # spacing 1 around y=16
+    # Put the red marines at different depths; once in contact all blue marines attack the frontmost one,
+    # the one whose x is nearest the blue centre's x.
+    battle.steps[:] = 5
+    for slot, x in ((0, 12.0), (1, 14.0), (2, 19.0)):
+        battle.engine.place(0, slot, x=x, y=16.0 + slot - 1)
+    battle.act()
+    assert (battle.commands.kind[0, n:] == CMD_ATTACK).all()
+    assert (battle.commands.target[0, n:] == 2).all()
+
+
+def test_colossus_splash_fires_at_the_densest_cluster():
+    battle = Battle("1c3s5z", red="stop", blue="colossus_splash")
+    n = battle.n_red
+    colossus = n  # blue's first unit (creation order: colossus, stalkers, zealots)
+    cx, cy = battle.state.x[0, colossus], battle.state.y[0, colossus]
+    for slot in range(n):  # red units out of the way, at the far west
+        battle.engine.place(0, slot, x=1.0 + 0.8 * slot, y=9.0)
+    battle.engine.place(0, 1, x=cx - 4.0, y=cy - 3.0)  # a lone stalker, 5 away: the nearest to the colossus
+    # Three zealots in a row 1.6 apart, about 7 away: only the middle one has both others within 3 (the ends are
+    # 3.2 apart); the other red units stand far off in the west.
+    for k, slot in enumerate((4, 5, 6)):
+        battle.engine.place(0, slot, x=cx - 6.0, y=cy + 2.0 + 1.6 * k)
+    battle.reset_scripts()
+    battle.act()
+    assert battle.commands.kind[0, colossus] == CMD_ATTACK
+    assert battle.commands.target[0, colossus] == 5  # the middle zealot, not the nearer stalker
+
+
+def test_mmm_medivac_heals_the_most_injured_unit():
+    for script in ("mmm_formation", "marauder_front"):
+        battle = Battle("MMM", red="stop", blue=script)
+        n = battle.n_red
+        types = battle.state.utype[0, n:]
+        medivac = n + int(np.flatnonzero(STATS[types, S["weapon"]] == 3)[0])
+        battle.engine.place(0, n + 1, health=30.0)  # a marine at 2/3 health
+        battle.engine.place(0, n + 2, health=12.0)  # a marine at about 1/4: the most injured
+        battle.reset_scripts()
+        battle.act()
+        assert battle.commands.kind[0, medivac] == CMD_HEAL, script
+        assert battle.commands.target[0, medivac] == n + 2, script
+
+
+def test_surround_takes_flanking_positions_before_engaging():
+    battle = Battle("3s_vs_4z", red="stop", blue="surround")
+    battle.reset_scripts()
+    n = battle.n_red
+    ys = []
+    for _ in range(40):
+        battle.step()
+        zealots = battle.state.alive[0, n:]
+        ys.append(battle.state.y[0, n:][zealots])
+        if (battle.state.health[0, :n] + battle.state.shield[0, :n] < 160).any():
+            break
+    # Before contact the zealots spread across the stalkers' line (flanks at +-4*sqrt(3) = 6.9 from its centre).
+    spread = max(np.ptp(y) for y in ys)
+    assert spread > 8.0, spread
+
+
+def test_pincer_swings_through_smac_hards_corridor_waypoints():
+    battle = Battle("corridor", red="stop", blue="pincer")
+    battle.reset_scripts()
+    battle.act()
+    n = battle.n_red
+    assert (battle.commands.kind[0, n:] == CMD_MOVE).all()
+    points = np.stack([battle.commands.x[0, n:], battle.commands.y[0, n:]], axis=1)
+    # SMAC-HARD's corridor pincer goes via (15, 22) and (22, 15); half of the 24 zerglings each way.
+    for waypoint in ((15.0, 22.0), (22.0, 15.0)):
+        close = np.hypot(*(points - waypoint).T) < 0.2
+        assert close.sum() == 12, (waypoint, points)
