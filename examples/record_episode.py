@@ -14,9 +14,9 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from smac_hard_gym.opponents import Script, SideView
 
 from smac_hard_gym.engine.state import CMD_ATTACK
+from smac_hard_gym.opponents import Script, SideView
 from smac_hard_gym.render import BattleRenderer, record_engine_episode, write_video
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from smac_hard_gym.maps import parse_map
 
 from smac_hard_gym.engine import BattleEngine
+from smac_hard_gym.maps import parse_map
 
 
 def open_map(red: list[str], blue: list[str], name: str = "test_open"):

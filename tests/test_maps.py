@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pytest
+
 from smac_hard_gym.maps import DATA_DIR, MapError, list_maps, load_map, load_map_file, parse_map, register_map
 
 # SMAC's map registry (smac_maps.py via smac_interface §7): agents, enemies, limit, races, type bits, map_type.

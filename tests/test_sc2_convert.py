@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from s2clientprotocol import common_pb2, raw_pb2
-from smac_hard_gym.maps import load_map
 
 from smac_hard_gym.engine.scenario import build_layout
 from smac_hard_gym.engine.state import (
@@ -27,6 +26,7 @@ from smac_hard_gym.engine.state import (
     Commands,
     allocate_state,
 )
+from smac_hard_gym.maps import load_map
 from smac_hard_gym.sc2.convert import decode_grid, fill_battle, raw_actions, read_roster
 from smac_hard_gym.sc2.errors import Sc2GameError
 

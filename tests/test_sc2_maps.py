@@ -9,9 +9,9 @@ from __future__ import annotations
 import zipfile
 
 import pytest
-from smac_hard_gym.maps import SMAC_MAPS
 
 from smac_hard_gym.cli import main as cli
+from smac_hard_gym.maps import SMAC_MAPS
 from smac_hard_gym.sc2.errors import MapInstallError, MapNotInstalledError, Sc2NotFoundError
 from smac_hard_gym.sc2.maps import find_sc2, install_maps
 

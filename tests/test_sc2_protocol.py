@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from s2clientprotocol import common_pb2, debug_pb2, error_pb2, raw_pb2
 from s2clientprotocol import sc2api_pb2 as sc_pb
-from smac_hard_gym.maps import load_map
 
 from smac_hard_gym.engine import BattleEngine
+from smac_hard_gym.maps import load_map
 from smac_hard_gym.sc2.compat import protocol
 from smac_hard_gym.sc2.convert import decode_grid
 from smac_hard_gym.sc2.errors import Sc2LaunchError

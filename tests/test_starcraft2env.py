@@ -7,9 +7,9 @@ import sys
 
 import numpy as np
 import pytest
-from smac_hard_gym.opponents import Script
 
 from smac_hard_gym.actions import InvalidActionError
+from smac_hard_gym.opponents import Script
 from smac_hard_gym.starcraft2 import StarCraft2Env
 
 ENV_INFO_KEYS = {"state_shape", "obs_shape", "n_actions", "n_agents", "episode_limit", "agent_features",
