@@ -81,18 +81,18 @@ def _can_hit(stats, attacker_type, target_type):
 
 
 @inline
-def _edge_distance(x, y, utype, stats, i, j):
-    dx = x[j] - x[i]
-    dy = y[j] - y[i]
-    return math.sqrt(dx * dx + dy * dy) - stats[utype[i], _RADIUS] - stats[utype[j], _RADIUS]
+def _edge_distance(xi, yi, xj, yj, radii):
+    """Edge-to-edge distance of two units whose radii sum to ``radii``."""
+    dx = xj - xi
+    dy = yj - yi
+    return math.sqrt(dx * dx + dy * dy) - radii
 
 
 @inline
-def _within(x, y, utype, stats, i, j, reach):
-    """Edge distance <= reach, without a square root."""
-    dx = x[j] - x[i]
-    dy = y[j] - y[i]
-    limit = reach + stats[utype[i], _RADIUS] + stats[utype[j], _RADIUS]
+def _within(xi, yi, xj, yj, limit):
+    """Centre distance <= limit (reach plus both radii), without a square root."""
+    dx = xj - xi
+    dy = yj - yi
     return dx * dx + dy * dy <= limit * limit
 
 
@@ -178,15 +178,16 @@ def _acquire_heal(i, utype, side, alive, x, y, health, target, stats):
     scan = stats[utype[i], _SCAN]
     cur = target[i]
     if cur >= 0 and _heal_wanted(utype, alive, health, stats, cur) and _within(
-            x, y, utype, stats, i, cur, scan + _LEASH):
+            x[i], y[i], x[cur], y[cur], scan + _LEASH + stats[utype[i], _RADIUS] + stats[utype[cur], _RADIUS]):
         return
     best = NO_UNIT
     best_d = _INF
     for j in range(alive.shape[0]):
         if j == i or side[j] != side[i] or not _heal_wanted(utype, alive, health, stats, j):
             continue
-        if _within(x, y, utype, stats, i, j, scan):
-            d = _edge_distance(x, y, utype, stats, i, j)
+        radii = stats[utype[i], _RADIUS] + stats[utype[j], _RADIUS]
+        if _within(x[i], y[i], x[j], y[j], scan + radii):
+            d = _edge_distance(x[i], y[i], x[j], y[j], radii)
             if d < best_d:
                 best_d = d
                 best = j
@@ -207,7 +208,8 @@ def _scan(i, reach, responder, utype, side, alive, x, y, target, attacker, stats
     for j in range(alive.shape[0]):
         if not alive[j] or side[j] == side[i] or not _can_hit(stats, t, utype[j]):
             continue
-        if _within(x, y, utype, stats, i, j, reach):
+        radii = stats[t, _RADIUS] + stats[utype[j], _RADIUS]
+        if _within(x[i], y[i], x[j], y[j], reach + radii):
             rank = 0 if target[j] == i else 1
         elif responder and attacker[i] == j:
             rank = 2
@@ -215,7 +217,7 @@ def _scan(i, reach, responder, utype, side, alive, x, y, target, attacker, stats
             continue
         if rank > best_rank:
             continue
-        d = _edge_distance(x, y, utype, stats, i, j)
+        d = _edge_distance(x[i], y[i], x[j], y[j], radii)
         if rank < best_rank or d < best_d:
             best_rank = rank
             best_d = d
@@ -254,7 +256,9 @@ def _targeting(utype, side, alive, x, y, health, order, order_target, target, at
             hold = o == ORDER_HOLD
             reach = stats[t, _RANGE] if hold else stats[t, _SCAN]
             cur = target[i]
-            if cur >= 0 and alive[cur] and _within(x, y, utype, stats, i, cur, reach if hold else reach + _LEASH):
+            keep = reach if hold else reach + _LEASH
+            if cur >= 0 and alive[cur] and _within(
+                    x[i], y[i], x[cur], y[cur], keep + stats[t, _RADIUS] + stats[utype[cur], _RADIUS]):
                 continue
             target[i] = _scan(i, reach, (not passive) and not hold, utype, side, alive, x, y, target, attacker, stats)
 
@@ -322,7 +326,7 @@ def _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, 
             continue
         j = target[i]
         if j >= 0:
-            if _within(x, y, utype, stats, i, j, stats[t, _RANGE]):
+            if _within(x[i], y[i], x[j], y[j], stats[t, _RANGE] + stats[t, _RADIUS] + stats[utype[j], _RADIUS]):
                 continue  # in range: stand and act
             gx, gy = x[j], y[j]
         elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
@@ -499,7 +503,7 @@ def _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield
         if j < 0 or not alive0[j]:
             continue
         t = utype[i]
-        if not _within(x, y, utype, stats, i, j, stats[t, _RANGE]):
+        if not _within(x[i], y[i], x[j], y[j], stats[t, _RANGE] + stats[t, _RADIUS] + stats[utype[j], _RADIUS]):
             continue
         weapon = stats[t, _WEAPON]
         if weapon == WEAPON_HEAL:
