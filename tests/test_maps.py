@@ -130,6 +130,9 @@ def test_user_scenario_by_file_without_code_change(tmp_path, monkeypatch):
     path.write_text(json.dumps(doc))
     spec = load_map(str(path))
     assert (spec.n_agents, spec.n_enemies) == (5, 12)
+    from smac_hard_gym import maps
+
+    monkeypatch.setattr(maps, "_USER_FILES", {})  # the registration below must not outlive this test
     monkeypatch.setenv("SMAC_HARD_GYM_MAP_PATH", str(tmp_path))
     assert "my_mix" in list_maps() and load_map("my_mix").n_enemies == 12
     register_map(path)

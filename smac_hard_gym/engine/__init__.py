@@ -8,7 +8,16 @@
 
 from __future__ import annotations
 
+import os
+
+import numba
 import numpy as np
+
+# numba's OpenMP layer spins and yields badly when the cores are shared (a 16-battle step took 8 ms instead of
+# 0.2 ms on a loaded 2-core machine) and is unsafe after fork; the workqueue layer has neither problem. It must not be
+# entered from two Python threads at once: use one env per process (vector envs do). NUMBA_THREADING_LAYER overrides.
+if os.environ.get("NUMBA_THREADING_LAYER", "workqueue") == "workqueue":
+    numba.config.THREADING_LAYER = "workqueue"
 
 from smac_hard_gym.engine.kernels import step_batch, step_batch_serial
 from smac_hard_gym.engine.scenario import Layout, build_layout

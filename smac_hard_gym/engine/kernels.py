@@ -527,13 +527,17 @@ def _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield
 
 @inline
 def _deaths(alive, health, shield, order, target):
-    for i in range(alive.shape[0]):
+    n = alive.shape[0]
+    for i in range(n):
         if alive[i] and health[i] <= 0.0:
             alive[i] = False
             health[i] = 0.0
             shield[i] = 0.0
             order[i] = ORDER_IDLE
             target[i] = NO_UNIT
+            for j in range(n):  # nobody engages a dead unit (ordered attacks complete in the next targeting)
+                if target[j] == i:
+                    target[j] = NO_UNIT
 
 
 @njit(cache=True, error_model="numpy")

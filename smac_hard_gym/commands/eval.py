@@ -1,0 +1,64 @@
+"""``smac-hard-gym eval``: masked win rate of a trained model per opponent script and for their mixture.
+
+``--opponent all`` evaluates every script that plays the map, ``blackbox`` the map's SMAC-HARD pool without
+``base`` (the paper's black-box evaluation), ``default`` the full pool, or a script name (names joined by commas).
+The mixture row is the pool's expected win rate: the scripts' win rates weighted by the pool's probabilities.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+HELP = "evaluate a trained model's win rate per opponent script and for the mixture"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", required=True, help="path of a model.zip written by `smac-hard-gym train`")
+    parser.add_argument("--map", default=None, help="map name (default: the map the model was trained on)")
+    parser.add_argument("--opponent", default="all", help="all | default | blackbox | NAME[,NAME...] (default all)")
+    parser.add_argument("--episodes", type=int, default=32, help="episodes per script (default 32)")
+    parser.add_argument("--num-envs", type=int, default=16, help="battles stepped together (default 16)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", default=None, help="write the results here (default: next to the model)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from smac_hard_gym.training import evaluate_scripts, format_table, load_run_config, resolve_opponents
+
+    model_path = Path(args.model)
+    if not model_path.is_file():
+        raise SystemExit(f"no model at {model_path}")
+    if args.episodes < 1 or args.num_envs < 1:
+        raise SystemExit(f"--episodes and --num-envs must be >= 1, got {args.episodes} and {args.num_envs}")
+    run_config = load_run_config(model_path)
+    map_name = args.map or (run_config.map_name if run_config else None)
+    if map_name is None:
+        raise SystemExit("the model has no config.json next to it; pass --map")
+    env_kwargs = run_config.env_kwargs() if run_config else {}
+    try:
+        names, _ = resolve_opponents(map_name, args.opponent)
+    except (TypeError, ValueError) as err:
+        raise SystemExit(f"smac-hard-gym eval: {err}") from None
+
+    import torch
+    from sb3_contrib import MaskablePPO
+
+    torch.set_num_threads(1)
+    model = MaskablePPO.load(model_path, device="cpu")
+    print(f"model {model_path} on {map_name}: {len(names)} script(s) x {args.episodes} episodes, seed {args.seed}")
+    results = evaluate_scripts(model, map_name, args.opponent, args.episodes, num_envs=args.num_envs,
+                               seed=args.seed, env_kwargs=env_kwargs, log=print)
+    rows = [("opponent", "weight", "win rate", "wins", "mean return")]
+    for name, row in results["scripts"].items():
+        rows.append((name, f"{results['weights'][name]:.3f}", f"{row['win_rate']:.3f}",
+                     f"{row['wins']}/{row['episodes']}", f"{row['mean_return']:.2f}"))
+    rows.append((f"{args.opponent} (mixture)", "1.000", f"{results['mixture']['win_rate']:.3f}", "", ""))
+    print()
+    print(format_table(rows))
+    default_name = f"eval_{map_name}_{args.opponent.replace(',', '+')}.json"
+    out = Path(args.json) if args.json else model_path.with_name(default_name)
+    out.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"\nwrote {out}")
+    return 0

@@ -1,0 +1,291 @@
+"""``SMACHardEnv``: the Gymnasium single-agent view of a SMAC-HARD battle (one joint controller for all agents).
+
+``gymnasium.make("SMACHard-3m-v0")`` builds one. :class:`JointView` encodes the two-player core's red side as that
+joint view (spaces, observations, masks, action checks) for a whole batch, so the native vector env shares it and
+its battles match single envs exactly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from smac_hard_gym.core import TwoPlayerCore
+from smac_hard_gym.engine.state import RED
+from smac_hard_gym.features import SmacOptions
+from smac_hard_gym.units import STATS, S
+
+__all__ = ["SMACHardEnv", "JointView", "OBS_MODES", "INVALID_ACTION_POLICIES", "RENDER_FPS", "make_options"]
+
+OBS_MODES = ("joint", "joint+state", "dict")
+INVALID_ACTION_POLICIES = ("raise", "noop")
+RENDER_FPS = 8  # frames per second when shown: 4x the Normal-speed game time of step_mul=8 loops per step
+OBS_LOW = -1.0  # SMAC features are ratios in [-1, 1] (offsets / sight range, health / max, one-hots); see _state_high
+
+
+def make_options(options: SmacOptions | dict | None, smac_options: dict[str, Any]) -> SmacOptions:
+    """SMAC's observation and reward options from an ``options`` object or dict plus keyword overrides."""
+    if isinstance(options, SmacOptions):
+        base = {name: getattr(options, name) for name in options.__dataclass_fields__}
+    elif options is None:
+        base = {}
+    elif isinstance(options, dict):
+        base = dict(options)
+    else:
+        raise TypeError(f"options must be a SmacOptions, a dict of SMAC options or None, got {options!r}")
+    base.update(smac_options)
+    return SmacOptions.from_kwargs(**base)
+
+
+def _state_high(core: TwoPlayerCore) -> float:
+    """Upper bound of the global state: its cooldown column (cooldown / SMAC's normaliser) exceeds 1 for some units
+    (hydralisk: 13.2 loops over SMAC's 10), so it is the largest such ratio among the learner's units, at least 1."""
+    feats = core.features[RED]
+    utype = feats.utype[feats.own]
+    timer_max = np.where(feats.own_healer, STATS[utype, S["energy_max"]], STATS[utype, S["cooldown"]])
+    return max(1.0, float((timer_max / feats.own_max_cooldown).max()))
+
+
+class JointView:
+    """The learner's side of a core as one joint agent: spaces, batched observations, masks and action checks.
+
+    ``obs_mode`` picks the observation: ``"joint"`` (every agent's SMAC observation, flattened agent-major),
+    ``"joint+state"`` (that, then SMAC's global state) or ``"dict"`` (``obs`` (n_agents, obs_size), ``state``
+    (state_size,) and ``action_mask`` (n_agents, n_actions) int8).
+    """
+
+    def __init__(self, core: TwoPlayerCore, obs_mode: str = "joint") -> None:
+        if obs_mode not in OBS_MODES:
+            raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
+        feats = core.features[RED]
+        self.core = core
+        self.obs_mode = obs_mode
+        self.n_agents, self.n_actions = feats.n_agents, feats.n_actions
+        self.obs_size, self.state_size = feats.obs_size, feats.state_size
+        self.mask_size = self.n_agents * self.n_actions
+        self.action_space = spaces.MultiDiscrete(np.full(self.n_agents, self.n_actions, dtype=np.int64))
+        joint = self.n_agents * self.obs_size
+        state_high = _state_high(core)
+        if obs_mode == "joint":
+            self.observation_space: spaces.Space = spaces.Box(OBS_LOW, 1.0, (joint,), np.float32)
+        elif obs_mode == "joint+state":
+            high = np.concatenate([np.ones(joint), np.full(self.state_size, state_high)]).astype(np.float32)
+            self.observation_space = spaces.Box(np.full_like(high, OBS_LOW), high, dtype=np.float32)
+        else:
+            self.observation_space = spaces.Dict({
+                "obs": spaces.Box(OBS_LOW, 1.0, (self.n_agents, self.obs_size), np.float32),
+                "state": spaces.Box(OBS_LOW, state_high, (self.state_size,), np.float32),
+                "action_mask": spaces.Box(0, 1, (self.n_agents, self.n_actions), np.int8),
+            })
+
+    def observations(self, rows: np.ndarray | None = None) -> np.ndarray | dict[str, np.ndarray]:
+        """Fresh batched observations: ``(B, dim)`` float32, or a dict of ``(B, ...)`` arrays in ``"dict"`` mode.
+
+        ``rows`` (battle indices) encodes those battles only, from the same features: a vector env reads its
+        terminal observations this way before resetting the battles, and then encodes the batch once.
+        """
+        core = self.core
+        if rows is None:
+            obs, avail = core.observations(RED), core.avail_actions(RED)
+            state = core.global_state(RED) if self.obs_mode != "joint" else None
+        else:
+            obs, avail, state = self._rows(np.asarray(rows, dtype=np.int64))
+        batch = obs.shape[0]
+        if self.obs_mode == "joint":
+            return obs.reshape(batch, -1)
+        if self.obs_mode == "joint+state":
+            return np.concatenate([obs.reshape(batch, -1), state], axis=1)
+        return {"obs": obs, "state": state, "action_mask": avail.astype(np.int8)}
+
+    def _rows(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        core, feats = self.core, self.core.features[RED]
+        state = type(core.state)(*(field[rows] for field in core.state))
+        avail = core.avail_actions(RED)[rows]
+        last_action, steps = core.last_action[RED][rows], core.episode_step[rows]
+        obs = feats.observations(state, avail, last_action, steps)
+        global_state = None
+        if self.obs_mode != "joint":
+            global_state = feats.global_state(state, last_action, steps,
+                                              obs=obs if core.options.obs_instead_of_state else None)
+        return obs, avail, global_state
+
+    def masks(self) -> np.ndarray:
+        """Fresh bool ``(B, n_agents * n_actions)``: the available actions, agent-major."""
+        return self.core.avail_actions(RED).reshape(-1, self.mask_size).copy()
+
+    def resolve_actions(self, actions: np.ndarray, policy: str, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Actions ``(B, n_agents)`` as int64 and the number replaced per battle.
+
+        ``policy="raise"`` leaves illegal actions for the core to reject with an error naming the battle, agent and
+        available actions; ``"noop"`` replaces each illegal (unavailable or out-of-range) action in an active battle
+        by the agent's first available action: no-op (0) for a dead agent, stop (1) for a living one.
+        """
+        acts = np.asarray(actions)
+        if acts.dtype.kind not in "iu":
+            if acts.dtype.kind == "f" and np.all(np.isfinite(acts)) and np.all(acts == np.round(acts)):
+                acts = acts.astype(np.int64)
+            else:
+                raise ValueError(f"actions must be integers (one per agent, 0..{self.n_actions - 1}), "
+                                 f"got {actions!r}")
+        acts = acts.astype(np.int64, copy=True)
+        replaced = np.zeros(acts.shape[0], dtype=np.int64)
+        if policy == "noop":
+            avail = self.core.avail_actions(RED)
+            in_range = (acts >= 0) & (acts < self.n_actions)
+            rows, agents = np.indices(acts.shape)
+            legal = in_range & avail[rows, agents, np.clip(acts, 0, self.n_actions - 1)]
+            bad = ~legal & np.asarray(active, dtype=bool)[:, None]
+            acts[bad] = avail.argmax(axis=2)[bad]
+            replaced = bad.sum(axis=1)
+        return acts, replaced
+
+
+class SMACHardEnv(gym.Env):
+    """SMAC-HARD as a Gymnasium environment: one controller chooses every agent's SMAC action each step.
+
+    Description
+        The learner's team (red, SMAC's agents) fights an opponent script on one of the 23 SMAC maps with the
+        embedded battle engine (or StarCraft II, ``backend="sc2"``). The opponent is the map's SMAC-HARD mixture of
+        scripts by default, one script drawn per episode from the episode's seed (``info["opponent"]`` names it).
+
+    Action Space
+        ``MultiDiscrete([n_actions] * n_agents)``: SMAC's action per agent (0 no-op, 1 stop, 2-5 move N/S/E/W,
+        6+j attack enemy j, or heal ally j for medivacs). ``action_masks()`` returns the legal ones, flat bool of
+        length ``n_agents * n_actions`` (agent-major; MaskablePPO reads it), and ``info["action_mask"]`` the same
+        as a fresh int8 array; every agent always has at least one legal action (no-op when dead, stop when alive).
+        An illegal action raises :class:`~smac_hard_gym.actions.InvalidActionError` naming the agent and its
+        legal actions; with ``invalid_action="noop"`` it is replaced by the agent's first legal action instead (no-op
+        when dead, stop when alive) and ``info["invalid_actions"]`` counts the replacements.
+
+    Observation Space
+        ``obs_mode="joint"`` (default): Box float32 ``(n_agents * obs_size,)``, every agent's SMAC observation
+        (``smac_interface.md`` §3), agent-major, in [-1, 1]. ``"joint+state"``: the same followed by SMAC's global
+        state (§4). ``"dict"``: ``{"obs": (n_agents, obs_size), "state": (state_size,), "action_mask":
+        (n_agents, n_actions) int8}``.
+
+    Rewards
+        SMAC's shaped reward (damage dealt, kills, win bonus), scaled so an episode's maximum is ``reward_scale_rate``
+        (20); every ``reward_*`` option of SMAC applies.
+
+    Starting State
+        Both teams at the map's spawn points; ``reset(seed=s)`` fixes the opponent draw and every script's random
+        choices for the episode.
+
+    Episode End
+        ``terminated`` when one team is destroyed (win, loss or draw); ``truncated`` when the map's episode limit is
+        reached (also on a step that ends the battle, as gymnasium's ``TimeLimit`` reports it; ``gymnasium.make``
+        sets ``max_episode_steps`` to the limit, and a smaller ``max_episode_steps`` ends episodes earlier).
+
+    Info
+        ``battle_won``, ``dead_allies``, ``dead_enemies``, ``opponent`` (the script playing this episode) and
+        ``action_mask`` after every step; ``opponent`` and ``action_mask`` after reset.
+
+    Arguments
+        ``map_name``; ``opponent`` (``"default"`` = the map's SMAC-HARD pool, ``"blackbox"``, ``"base"``, any script
+        name, a user script reference, a Script, or a list of them) and ``opponent_probs``; ``obs_mode``;
+        ``invalid_action`` (``"raise"`` or ``"noop"``); ``render_mode`` (``"rgb_array"`` or ``"human"``);
+        ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a :class:`~smac_hard_gym.features.SmacOptions`
+        or dict) and any SMAC observation/reward option as a keyword (``reward_sparse=True``, ...).
+
+    Version History
+        v0: first version.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": RENDER_FPS}
+
+    def __init__(self, map_name: str = "3m", *, opponent: Any = "default",
+                 opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
+                 invalid_action: str = "raise", render_mode: str | None = None, backend: str = "native",
+                 backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
+                 **smac_options: Any) -> None:
+        if invalid_action not in INVALID_ACTION_POLICIES:
+            raise ValueError(f"invalid_action must be one of {INVALID_ACTION_POLICIES}, got {invalid_action!r}")
+        if obs_mode not in OBS_MODES:
+            raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
+        from smac_hard_gym.render import check_render_mode  # the renderer itself loads on the first render()
+
+        self.render_mode = check_render_mode(render_mode)
+        self.invalid_action = invalid_action
+        self.core = TwoPlayerCore(map_name, 1, opponent=opponent, opponent_probs=opponent_probs, backend=backend,
+                                  step_mul=step_mul, options=make_options(options, smac_options),
+                                  backend_options=backend_options)
+        self.view = JointView(self.core, obs_mode)
+        self.map_name = self.core.spec.name
+        self.obs_mode = obs_mode
+        self.n_agents, self.n_actions = self.view.n_agents, self.view.n_actions
+        self.episode_limit = self.core.spec.episode_limit
+        self.action_space = self.view.action_space
+        self.observation_space = self.view.observation_space
+        self._renderer = None
+        self._needs_reset = True
+
+    def __repr__(self) -> str:
+        return (f"SMACHardEnv(map_name={self.map_name!r}, opponent={self.core.opponent!r}, "
+                f"obs_mode={self.obs_mode!r})")
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Start a new episode; ``seed`` fixes the opponent draw and every script choice of the episode."""
+        super().reset(seed=seed)
+        self.core.reset(seed=seed)
+        self._needs_reset = False
+        return self._observation(), {"opponent": self.core.opponent_names()[0],
+                                     "action_mask": self._mask().astype(np.int8)}
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        if self._needs_reset:
+            raise RuntimeError("the episode is over (or never started); call reset() before step()")
+        acts = np.asarray(action)
+        if acts.shape != (self.n_agents,):
+            raise ValueError(f"action must hold one action per agent, shape ({self.n_agents},), got {acts.shape} "
+                             f"({action!r})")
+        acts, replaced = self.view.resolve_actions(acts[None], self.invalid_action, ~self.core.done)
+        result = self.core.step(acts)
+        terminated = bool(result.terminated[0])
+        # Truncated at the limit even when the battle also ended on that step, as gymnasium's TimeLimit says.
+        truncated = bool(self.core.episode_step[0] >= self.episode_limit)
+        self._needs_reset = terminated or truncated
+        info: dict[str, Any] = {
+            "battle_won": bool(result.battle_won[0, RED]), "dead_allies": int(result.dead_red[0]),
+            "dead_enemies": int(result.dead_blue[0]), "opponent": result.opponent[0],
+            "action_mask": self._mask().astype(np.int8),
+        }
+        if self.invalid_action == "noop":
+            info["invalid_actions"] = int(replaced[0])
+        return self._observation(), float(result.reward[0, RED]), terminated, truncated, info
+
+    def action_masks(self) -> np.ndarray:
+        """Legal actions of the current state: flat bool ``(n_agents * n_actions,)``, agent-major (a new array)."""
+        return self._mask()
+
+    def render(self) -> np.ndarray | None:
+        """The battle as an RGB frame ``(H, W, 3)`` uint8 (``"rgb_array"``), or shown in a window (``"human"``)."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called with render_mode=None; pass render_mode='rgb_array' or 'human' to "
+                            "the constructor (gymnasium.make(id, render_mode=...))")
+            return None
+        if self._renderer is None:
+            from smac_hard_gym.render import EnvRenderer
+
+            self._renderer = EnvRenderer(self.core.spec, self.render_mode, step_mul=self.core.backend.step_mul)
+        return self._renderer.render(self.core.state, 0, int(self.core.episode_step[0]),
+                                     self.core.opponent_names()[0])
+
+    def close(self) -> None:
+        """Release the backend and any render window. Idempotent."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        self.core.close()
+
+    def _observation(self) -> Any:
+        obs = self.view.observations()
+        if isinstance(obs, dict):
+            return {key: value[0] for key, value in obs.items()}
+        return obs[0]
+
+    def _mask(self) -> np.ndarray:
+        return self.view.masks()[0]

@@ -1,0 +1,866 @@
+"""``SubprocVectorEnv``: battles spread over worker processes, each owning a batch of K battles of any backend.
+
+Each worker builds its own vector env from a factory (cloudpickled, so lambdas work under every start method): a
+:class:`~smac_hard_gym.vector.NativeVectorEnv` of K battles, StarCraft II instances (``backend="sc2"``), or any
+gymnasium env (run as a batch of one). Observations and action masks come back through shared memory; rewards,
+flags and infos through a pipe.
+
+Two layers keep the worker protocol free of pipe specifics (a Ray actor can wrap :class:`BatchWorker` as it is):
+
+- :class:`BatchWorker`: build from a factory, ``describe()``, ``reset(seed, options)``, ``step(actions)``,
+  ``call(name, ...)``; plain arrays in, plain arrays out.
+- the pipe loop (``_worker_main``) and :class:`SubprocVectorEnv`: messages, shared memory, timeouts, restarts.
+
+A worker that dies, or does not answer within ``timeout`` seconds, is killed and then either rebuilt
+(``on_worker_error="restart"``: its battles report ``truncated=True`` with ``infos["worker_restarted"]``) or reported
+(``"raise"``: :class:`WorkerError`, after closing every worker). Workers never outlive the parent: they die with it
+(``PR_SET_PDEATHSIG`` on Linux, and a closed pipe everywhere), and ``close()`` joins, then kills, each one.
+
+>>> from smac_hard_gym.subproc import make_subproc_env
+>>> envs = make_subproc_env("3m", num_workers=2, envs_per_worker=4, autoreset_mode="SameStep")
+>>> obs, infos = envs.reset(seed=0)
+>>> obs.shape
+(8, 90)
+>>> envs.close()
+"""
+
+from __future__ import annotations
+
+import functools
+import multiprocessing as mp
+import os
+import signal
+import sys
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from multiprocessing import resource_tracker
+from multiprocessing.connection import Connection, wait
+from multiprocessing.shared_memory import SharedMemory
+from typing import Any
+
+import cloudpickle
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+__all__ = ["SubprocVectorEnv", "BatchWorker", "WorkerError", "make_subproc_env", "concat_infos",
+           "ON_WORKER_ERROR", "START_METHODS"]
+
+ON_WORKER_ERROR = ("raise", "restart")
+START_METHODS = tuple(mp.get_all_start_methods())
+MASK_KEY = "action_mask"
+RESTART_KEY = "worker_restarted"
+_AUTORESET_NAMES = {key: mode for mode in AutoresetMode for key in (mode.value, mode.name, mode.name.lower())}
+
+
+class WorkerError(RuntimeError):
+    """A worker process died, hung past the timeout, or could not be built."""
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The worker protocol (no IPC here).
+
+
+class BatchWorker:
+    """Owns one vector env built from ``factory`` and steps it: the part of a worker that any transport can host.
+
+    ``factory()`` returns a gymnasium ``VectorEnv`` (used as it is) or a single ``gymnasium.Env`` (run as a
+    ``SyncVectorEnv`` of one, with ``autoreset_mode``).
+    """
+
+    def __init__(self, factory: Callable[[], Any], autoreset_mode: AutoresetMode | None = None) -> None:
+        env = factory()
+        if isinstance(env, gym.Env):
+            env = SyncVectorEnv([functools.partial(_identity, env)],
+                                autoreset_mode=autoreset_mode or AutoresetMode.NEXT_STEP)
+        if not isinstance(env, VectorEnv):
+            raise TypeError(f"a worker factory must return a gymnasium VectorEnv or Env, got {type(env).__name__}")
+        self.env = env
+
+    def describe(self) -> dict[str, Any]:
+        """Sizes, spaces and modes of this worker's batch."""
+        env = self.env
+        mode = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
+        return {
+            "num_envs": env.num_envs, "single_observation_space": env.single_observation_space,
+            "single_action_space": env.single_action_space, "autoreset_mode": _AUTORESET_NAMES.get(mode, mode),
+            "render_mode": getattr(env, "render_mode", None), "mask_size": _mask_size(env),
+        }
+
+    def reset(self, seed: Any = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, actions: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        return self.env.step(actions)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> Any:
+        """Call method ``name`` of the batch env (or read the attribute when it is not callable)."""
+        if hasattr(self.env, name):
+            value = getattr(self.env, name)
+        elif hasattr(self.env, "call"):
+            return self.env.call(name, *args, **kwargs)
+        else:
+            raise AttributeError(f"{type(self.env).__name__} has no attribute {name!r}")
+        return value(*args, **kwargs) if callable(value) else value
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def _identity(env: Any) -> Any:
+    return env
+
+
+def _mask_size(env: VectorEnv) -> int | None:
+    """Length of one env's flat action mask, when the batch env gives masks."""
+    if hasattr(env, "action_masks"):
+        return int(np.prod(np.asarray(env.action_masks()).shape[1:]))
+    space = env.single_action_space
+    if isinstance(space, spaces.MultiDiscrete):
+        return int(space.nvec.sum())
+    if isinstance(space, spaces.Discrete):
+        return int(space.n)
+    return None
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Shared memory: every array leaf of the batched observation, and the masks, for all N envs.
+
+
+class _SharedBlock:
+    """Arrays ``(N, ...)`` laid out in one shared memory segment; ``layout`` is [(key, shape, dtype)]."""
+
+    def __init__(self, layout: list[tuple[str, tuple[int, ...], str]], name: str | None = None) -> None:
+        self.layout = layout
+        sizes = [int(np.prod(shape)) * np.dtype(dtype).itemsize for _, shape, dtype in layout]
+        offsets = np.concatenate([[0], np.cumsum([-(-s // 64) * 64 for s in sizes])]).astype(int)
+        self.owner = name is None
+        self.shm = SharedMemory(name=name, create=self.owner, size=max(int(offsets[-1]), 1))
+        self.arrays = {key: np.ndarray(shape, dtype=dtype, buffer=self.shm.buf, offset=int(off))
+                       for (key, shape, dtype), off in zip(layout, offsets[:-1], strict=True)}
+
+    @property
+    def name(self) -> str:
+        return self.shm.name
+
+    def close(self) -> None:
+        self.arrays = {}
+        try:
+            self.shm.close()
+        except BufferError:  # a view still alive somewhere; the segment goes with the process
+            pass
+        if self.owner:
+            try:
+                self.shm.unlink()
+            except FileNotFoundError:
+                pass
+
+
+def _obs_layout(space: spaces.Space, num_envs: int) -> list[tuple[str, tuple[int, ...], str]] | None:
+    if isinstance(space, spaces.Box):
+        return [("obs", (num_envs, *space.shape), space.dtype.str)]
+    if isinstance(space, spaces.Dict) and all(isinstance(s, spaces.Box) for s in space.values()):
+        return [(f"obs.{key}", (num_envs, *s.shape), s.dtype.str) for key, s in space.items()]
+    return None  # other spaces travel through the pipe
+
+
+def _write_obs(block: _SharedBlock | None, obs: Any, start: int, stop: int) -> Any:
+    """Copy ``obs`` rows into the block; returns what the pipe must carry instead (None when all went in)."""
+    if block is None:
+        return obs
+    if "obs" in block.arrays:
+        block.arrays["obs"][start:stop] = obs
+        return None
+    keys = [k for k in block.arrays if k.startswith("obs.")]
+    if not keys:
+        return obs
+    for key in keys:
+        block.arrays[key][start:stop] = obs[key[4:]]
+    return None
+
+
+def _read_obs(block: _SharedBlock, start: int, stop: int) -> Any:
+    """A copy of rows ``start:stop`` of the observations in the block (None when they travel by pipe)."""
+    if "obs" in block.arrays:
+        return block.arrays["obs"][start:stop].copy()
+    keys = [k for k in block.arrays if k.startswith("obs.")]
+    if not keys:
+        return None
+    return {key[4:]: block.arrays[key][start:stop].copy() for key in keys}
+
+
+def _concat_obs(parts: list[Any]) -> Any:
+    if isinstance(parts[0], dict):
+        return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    return np.concatenate([np.asarray(p) for p in parts])
+
+
+def _row(obs: Any, i: int) -> Any:
+    if isinstance(obs, dict):
+        return {k: v[i] for k, v in obs.items()}
+    return obs[i]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The worker process.
+
+
+def _limit_threads(threads: int) -> None:
+    """One worker per core is the point: keep numba and BLAS from starting a thread per core in each worker."""
+    for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = str(threads)
+    if "numba" in sys.modules:  # forked from a parent that already loaded it
+        import numba
+
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(threads)
+
+
+def _die_with_parent() -> None:
+    """Linux: ask the kernel to SIGKILL this process when its parent dies."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+
+def _pack_error(err: BaseException) -> tuple[bytes | None, str]:
+    text = "".join(traceback.format_exception(type(err), err, err.__traceback__))
+    try:
+        return cloudpickle.dumps(err), text
+    except Exception:  # an exception that does not pickle still travels as text
+        return None, text
+
+
+def _worker_main(conn: Connection, parent_end: Connection, factory_bytes: bytes, autoreset_mode: Any,
+                 threads: int) -> None:
+    parent_end.close()
+    _die_with_parent()
+    _limit_threads(threads)
+    parent = os.getppid()
+    block: _SharedBlock | None = None
+    start = stop = 0
+    try:
+        worker = BatchWorker(cloudpickle.loads(factory_bytes), autoreset_mode)
+        conn.send(("ok", worker.describe()))
+    except BaseException as err:  # noqa: BLE001 - the parent reports it
+        conn.send(("error", _pack_error(err)))
+        return
+    try:
+        while True:
+            if not conn.poll(1.0):
+                if os.getppid() != parent:  # orphaned: the parent died without closing the pipe
+                    break
+                continue
+            command, payload = conn.recv()
+            if command == "close":
+                break
+            try:
+                if command == "attach":
+                    name, layout, start, stop = payload
+                    block = _SharedBlock(layout, name)
+                    reply: Any = None
+                elif command == "reset":
+                    obs, infos = worker.reset(*payload)
+                    reply = (_write_obs(block, obs, start, stop), _strip_masks(block, infos, start, stop))
+                elif command == "step":
+                    obs, rewards, terminated, truncated, infos = worker.step(payload)
+                    reply = (_write_obs(block, obs, start, stop), np.asarray(rewards), np.asarray(terminated),
+                             np.asarray(truncated), _strip_masks(block, infos, start, stop))
+                elif command == "call":
+                    name, args, kwargs = payload
+                    reply = worker.call(name, *args, **kwargs)
+                else:
+                    raise ValueError(f"unknown worker command {command!r}")
+                conn.send(("ok", reply))
+            except Exception as err:  # an env error: report it, keep serving
+                conn.send(("error", _pack_error(err)))
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        pass
+    finally:
+        try:
+            worker.close()
+        finally:
+            if block is not None:
+                block.close()
+
+
+def _strip_masks(block: _SharedBlock | None, infos: dict[str, Any], start: int, stop: int) -> dict[str, Any]:
+    """Move ``infos["action_mask"]`` into shared memory (its ``_action_mask`` stays in the infos)."""
+    if block is None or MASK_KEY not in infos or "mask" not in block.arrays:
+        return infos
+    masks = np.asarray(infos[MASK_KEY])
+    target = block.arrays["mask"][start:stop]
+    if masks.reshape(len(target), -1).shape != target.shape:
+        return infos
+    present = np.asarray(infos.get(f"_{MASK_KEY}", np.ones(len(target), dtype=bool)))
+    target[present] = masks.reshape(target.shape)[present]
+    infos = dict(infos)
+    del infos[MASK_KEY]
+    return infos
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Infos of several workers as one batch.
+
+
+def concat_infos(parts: Sequence[dict[str, Any]], sizes: Sequence[int]) -> dict[str, Any]:
+    """Gymnasium vector infos of consecutive batches joined into one (keys missing in a part get blank rows and a
+    False ``_key`` mask)."""
+    keys: list[str] = []
+    for part in parts:
+        keys += [k for k in part if not k.startswith("_") and k not in keys]
+    out: dict[str, Any] = {}
+    for key in keys:
+        values = [part.get(key) for part in parts]
+        masks = [np.asarray(part.get(f"_{key}", np.ones(n, dtype=bool))) if key in part else np.zeros(n, dtype=bool)
+                 for part, n in zip(parts, sizes, strict=True)]
+        if any(isinstance(v, dict) for v in values):
+            out[key] = concat_infos([v if isinstance(v, dict) else {} for v in values], sizes)
+        else:
+            template = np.asarray(next(v for v in values if v is not None))
+            out[key] = np.concatenate([np.asarray(v) if v is not None else _blank(template, n)
+                                       for v, n in zip(values, sizes, strict=True)])
+        out[f"_{key}"] = np.concatenate(masks)
+    return out
+
+
+def _blank(template: np.ndarray, n: int) -> np.ndarray:
+    if template.dtype == object:
+        return np.full((n, *template.shape[1:]), None, dtype=object)
+    return np.zeros((n, *template.shape[1:]), dtype=template.dtype)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The parent side.
+
+
+class _Worker:
+    """The parent's handle on one worker process."""
+
+    def __init__(self, index: int, factory_bytes: bytes) -> None:
+        self.index = index
+        self.factory_bytes = factory_bytes
+        self.process: Any = None
+        self.conn: Connection | None = None
+        self.start = self.stop = 0
+        self.needs_reset = False  # NEXT_STEP: rebuilt after a failure, starts its next episode on the next step
+        self.last_obs: Any = None  # its rows of the latest observations
+        self.failures = 0  # failures since its last successful step
+        self.warm = False  # has answered a step: from then on `timeout` applies, before it `start_timeout`
+
+    @property
+    def size(self) -> int:
+        return self.stop - self.start
+
+
+class SubprocVectorEnv(VectorEnv):
+    """Battles in worker processes: each of ``len(factories)`` workers builds a batch env from its factory.
+
+    Arguments
+        ``factories``: one callable per worker, returning a gymnasium ``VectorEnv`` of K battles (e.g.
+        ``functools.partial(NativeVectorEnv, "3m", num_envs=4, autoreset_mode="SameStep")``) or a single
+        ``gymnasium.Env``. Workers may own different numbers of battles; they must agree on spaces and autoreset
+        mode. ``autoreset_mode``: required to match the workers' (and used for single-env factories); None takes
+        theirs. ``start_method``: ``"forkserver"`` (default where available), ``"spawn"`` or ``"fork"`` (fast,
+        but unsafe once the parent runs threads: torch, numba). ``timeout``: seconds a worker may take to answer
+        a reset or step before it counts as hung; ``start_timeout``: seconds to build, and to answer until its
+        first step (a cold numba cache compiles the engine on first use). ``on_worker_error``: ``"raise"`` or
+        ``"restart"``; ``max_failures``: a worker that fails more often than this without a good step in between
+        raises :class:`WorkerError` even under ``"restart"`` (a worker that can never run is not restarted
+        forever). ``worker_threads``: numba/BLAS threads per worker.
+
+    Battle ``i`` of the batch is battle ``i - start`` of the worker owning rows ``start..stop-1``; ``reset(seed=s)``
+    gives it the seed ``s + i``, so a subprocess batch reproduces a native batch of the same size.
+    """
+
+    def __init__(self, factories: Sequence[Callable[[], Any]], *,
+                 autoreset_mode: AutoresetMode | str | None = None, start_method: str | None = None,
+                 timeout: float = 60.0, start_timeout: float = 600.0, on_worker_error: str = "raise",
+                 max_failures: int = 3, worker_threads: int = 1) -> None:
+        factories = list(factories)
+        if not factories or not all(callable(f) for f in factories):
+            raise ValueError(f"factories must be a non-empty list of callables, got {factories!r}")
+        if on_worker_error not in ON_WORKER_ERROR:
+            raise ValueError(f"on_worker_error must be one of {ON_WORKER_ERROR}, got {on_worker_error!r}")
+        if start_method is None:
+            start_method = "forkserver" if "forkserver" in START_METHODS else "spawn"
+        if start_method not in START_METHODS:
+            raise ValueError(f"start_method must be one of {START_METHODS} on this platform, got {start_method!r}")
+        for name, value in (("timeout", timeout), ("start_timeout", start_timeout)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
+        self._workers: list[_Worker] = []
+        self._block: _SharedBlock | None = None
+        self.start_method = start_method
+        self.timeout = float(timeout)
+        self.start_timeout = float(start_timeout)
+        self.on_worker_error = on_worker_error
+        self.max_failures = int(max_failures)
+        self.worker_threads = int(worker_threads)
+        self._requested_mode = None if autoreset_mode is None else _parse_mode(autoreset_mode)
+        self._ctx = mp.get_context(start_method)
+        if start_method == "forkserver":
+            # The server imports the engine once, so each worker forks ready to run: no per-worker imports,
+            # and no threads are running in the server when it forks (numba's GNU OpenMP layer is not fork-safe
+            # in a process that has run parallel code, which is why "fork" from a busy parent is not).
+            self._ctx.set_forkserver_preload(["smac_hard_gym.vector"])
+        # Workers must share the parent's resource tracker: one of their own would unlink the shared memory when
+        # its worker exits (a forked worker starts its own unless the parent's already runs).
+        resource_tracker.ensure_running()
+        self.restarts = 0
+        try:
+            self._workers = [_Worker(i, cloudpickle.dumps(f)) for i, f in enumerate(factories)]
+            for worker in self._workers:
+                self._launch(worker)
+            descriptions = [self._receive_start(w) for w in self._workers]
+            self._configure(descriptions)
+            for worker in self._workers:
+                self._attach(worker)
+        except BaseException:
+            self.close()
+            raise
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Setup.
+
+    def _configure(self, descriptions: list[dict[str, Any]]) -> None:
+        first = descriptions[0]
+        for w, desc in enumerate(descriptions[1:], start=1):
+            for key in ("single_observation_space", "single_action_space", "autoreset_mode", "mask_size"):
+                if desc[key] != first[key]:
+                    raise ValueError(f"worker {w} differs from worker 0 in {key}: {desc[key]!r} != {first[key]!r}")
+        mode = first["autoreset_mode"]
+        if self._requested_mode is not None and mode != self._requested_mode:
+            raise ValueError(f"the workers' envs autoreset in mode {mode.value!r} but autoreset_mode="
+                             f"{self._requested_mode.value!r} was asked; build them with that mode")
+        start = 0
+        for worker, desc in zip(self._workers, descriptions, strict=True):
+            worker.start, worker.stop = start, start + desc["num_envs"]
+            start = worker.stop
+        self.num_envs = start
+        self.autoreset_mode = mode
+        self.render_mode = first["render_mode"]
+        self.metadata = {"autoreset_mode": mode, "render_modes": [] if self.render_mode is None else
+                         [self.render_mode]}
+        self.single_observation_space = first["single_observation_space"]
+        self.single_action_space = first["single_action_space"]
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.mask_size = first["mask_size"]
+        layout = _obs_layout(self.single_observation_space, self.num_envs) or []
+        if self.mask_size:
+            layout.append(("mask", (self.num_envs, self.mask_size), "|i1"))
+        self._block = _SharedBlock(layout)
+        self._masks = np.ones((self.num_envs, self.mask_size or 0), dtype=bool)
+        self._masks_seen = False
+
+    def _launch(self, worker: _Worker) -> None:
+        worker.warm = False
+        parent_end, child_end = self._ctx.Pipe()
+        process = self._ctx.Process(
+            target=_worker_main, name=f"smac-hard-gym-worker-{worker.index}", daemon=True,
+            args=(child_end, parent_end, worker.factory_bytes, self._requested_mode, self.worker_threads))
+        process.start()
+        child_end.close()
+        worker.process, worker.conn = process, parent_end
+
+    def _receive_start(self, worker: _Worker) -> dict[str, Any]:
+        ok, value = self._receive(worker, self.start_timeout, "start")
+        if not ok:
+            raise WorkerError(f"worker {worker.index} failed to build its env: {_first_line(value)}\n{value}")
+        return value
+
+    def _attach(self, worker: _Worker) -> None:
+        self._send(worker, "attach", (self._block.name, self._block.layout, worker.start, worker.stop))
+        ok, value = self._receive(worker, self.timeout, "attach")
+        if not ok:
+            raise WorkerError(f"worker {worker.index} could not attach the shared memory: {value}")
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Messages.
+
+    def _send(self, worker: _Worker, command: str, payload: Any = None) -> bool:
+        try:
+            worker.conn.send((command, payload))
+            return True
+        except (BrokenPipeError, ConnectionResetError, OSError):
+            return False
+
+    def _receive(self, worker: _Worker, timeout: float, what: str) -> tuple[bool, Any]:
+        """``(True, reply)``, or ``(False, why)`` when the worker died or hung; env errors are raised."""
+        replies = self._gather([worker], timeout, what)
+        return replies[worker.index]
+
+    def _gather(self, workers: list[_Worker], timeout: float, what: str) -> dict[int, tuple[bool, Any]]:
+        """Wait for one reply from each worker. Failures map to ``(False, why)``; env errors are raised once every
+        worker has answered (so the protocol stays in step)."""
+        if what in ("reset", "step") and not all(w.warm for w in workers):
+            timeout = max(timeout, self.start_timeout)  # a new worker's first calls may compile the engine
+        deadline = time.monotonic() + timeout
+        pending = {w.conn: w for w in workers}
+        sentinels = {w.process.sentinel: w for w in workers}
+        results: dict[int, tuple[bool, Any]] = {}
+        env_error: BaseException | None = None
+        while pending:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                for worker in pending.values():
+                    results[worker.index] = (False, f"no answer to {what} within {timeout:g} s (hung)")
+                break
+            ready = wait(list(pending) + [s for s, w in sentinels.items() if w.conn in pending], remaining)
+            for item in ready:
+                worker = pending.get(item) or sentinels.get(item)
+                if worker is None or worker.conn not in pending:
+                    continue
+                if item is worker.conn or worker.conn.poll():
+                    try:
+                        status, value = worker.conn.recv()
+                    except (EOFError, OSError):
+                        status, value = "died", None
+                else:
+                    status, value = "died", None
+                del pending[worker.conn]
+                if status == "ok":
+                    results[worker.index] = (True, value)
+                    worker.warm = worker.warm or what == "step"
+                elif status == "error":
+                    if what == "start":
+                        results[worker.index] = (False, value[1])
+                    else:
+                        env_error = env_error or _unpack_error(value, worker.index)
+                        results[worker.index] = (True, None)
+                else:
+                    worker.process.join(0.1)
+                    results[worker.index] = (False, f"died during {what} (exit code {worker.process.exitcode})")
+        if env_error is not None:
+            raise env_error
+        return results
+
+    def _fail(self, failures: dict[int, str]) -> None:
+        """Deal with workers that died or hung: raise (after closing everything) or rebuild them."""
+        if self.on_worker_error == "raise":
+            self.close()
+            lines = "; ".join(f"worker {w} (battles {self._span(w)}): {why}" for w, why in failures.items())
+            raise WorkerError(f"{lines}. The env is closed; use on_worker_error='restart' to rebuild failed "
+                              "workers instead")
+        for w in failures:
+            worker = self._workers[w]
+            worker.failures += 1
+            if worker.failures > self.max_failures:
+                self.close()
+                raise WorkerError(f"worker {w} (battles {self._span(w)}) failed {worker.failures} times in a row "
+                                  f"(last: {failures[w]}); the env is closed")
+            self._stop_process(worker, graceful=False)
+            self._launch(worker)
+            ok, value = self._receive(worker, self.start_timeout, "start")
+            if not ok:
+                self.close()
+                raise WorkerError(f"worker {w} failed again while restarting: {value}")
+            self._attach(worker)
+            self.restarts += 1
+
+    def _span(self, w: int) -> str:
+        worker = self._workers[w]
+        return f"{worker.start}..{worker.stop - 1}"
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Gymnasium API.
+
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset every battle (or those of ``options["reset_mask"]``); an int seed gives battle i ``seed + i``."""
+        self._check_open()
+        seeds = _split_seed(seed, self.num_envs)
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if mask is not None and (not isinstance(mask, np.ndarray) or mask.dtype != np.bool_
+                                 or mask.shape != (self.num_envs,) or not mask.any()):
+            raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({self.num_envs},) with "
+                             f"at least one True, got {mask!r}")
+        if isinstance(seed, (int, np.integer)):
+            super().reset(seed=int(seed))
+        chosen = [w for w in self._workers if mask is None or mask[w.start:w.stop].any()]
+        payloads = {}
+        for worker in chosen:
+            part = None if seeds is None else seeds[worker.start:worker.stop]
+            opts = dict(options)
+            if mask is not None and not mask[worker.start:worker.stop].all():
+                opts["reset_mask"] = mask[worker.start:worker.stop].copy()
+            payloads[worker.index] = (_compact_seed(part), opts or None)
+            self._send(worker, "reset", payloads[worker.index])
+        replies = self._gather(chosen, self.timeout, "reset")
+        failures = {w: why for w, (ok, why) in replies.items() if not ok}
+        if failures:
+            self._fail(failures)
+            for w in failures:  # a rebuilt worker gets the reset it missed
+                self._send(self._workers[w], "reset", payloads[w])
+            retry = self._gather([self._workers[w] for w in failures], self.timeout, "reset")
+            if not all(ok for ok, _ in retry.values()):
+                self.close()
+                raise WorkerError(f"workers {sorted(failures)} failed again during reset")
+            replies.update(retry)
+        for worker in chosen:
+            worker.needs_reset = False
+        parts = [self._unpack_reset(w, replies.get(w.index)) for w in self._workers]
+        obs = self._observations(parts)  # also restores the masks into each part's infos
+        return obs, concat_infos([p["infos"] for p in parts], [w.size for w in self._workers])
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        self._check_open()
+        actions = np.asarray(actions)
+        if actions.shape[:1] != (self.num_envs,):
+            raise ValueError(f"actions must have one row per battle ({self.num_envs}), got shape {actions.shape}")
+        for worker in self._workers:
+            if worker.needs_reset:
+                self._send(worker, "reset", (None, None))
+            else:
+                self._send(worker, "step", actions[worker.start:worker.stop])
+        replies = self._gather(self._workers, self.timeout, "step")
+        failures = {w: why for w, (ok, why) in replies.items() if not ok}
+        restarted: dict[int, Any] = {}
+        if failures:
+            self._fail(failures)
+            restarted = self._after_restart(failures)
+        parts = []
+        rewards = np.zeros(self.num_envs, dtype=np.float64)
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        truncated = np.zeros(self.num_envs, dtype=bool)
+        for worker in self._workers:
+            rows = slice(worker.start, worker.stop)
+            if worker.index in restarted:
+                parts.append(restarted[worker.index])
+                truncated[rows] = True
+            elif worker.needs_reset:  # rebuilt last step: this step starts its new episodes
+                parts.append(self._unpack_reset(worker, replies[worker.index]))
+                worker.needs_reset = False
+            else:
+                worker.failures = 0
+                obs_part, r, te, tr, info = replies[worker.index][1]
+                rewards[rows], terminated[rows], truncated[rows] = r, te, tr
+                parts.append({"obs": obs_part, "infos": info})
+        for w in failures:
+            self._workers[w].needs_reset = self.autoreset_mode == AutoresetMode.NEXT_STEP
+        obs = self._observations(parts)  # also restores the masks into each part's infos
+        infos = concat_infos([p["infos"] for p in parts], [w.size for w in self._workers])
+        return obs, rewards, terminated, truncated, infos
+
+    def _after_restart(self, failures: dict[int, str]) -> dict[int, dict[str, Any]]:
+        """What the rebuilt workers report this step: their episodes end as truncated, flagged in the infos.
+
+        SAME_STEP: the new episode's first observation, the last one seen in ``final_obs``. NEXT_STEP and DISABLED:
+        the last observation seen (the new episode starts on the next step, or at the user's reset).
+        """
+        out = {}
+        for w in failures:
+            worker = self._workers[w]
+            n = worker.size
+            flag = {RESTART_KEY: np.ones(n, dtype=bool), f"_{RESTART_KEY}": np.ones(n, dtype=bool)}
+            last = worker.last_obs
+            if self.autoreset_mode == AutoresetMode.SAME_STEP:
+                self._send(worker, "reset", (None, None))
+                ok, reply = self._receive(worker, self.timeout, "reset")
+                if not ok:
+                    self.close()
+                    raise WorkerError(f"worker {w} failed again after its restart: {reply}")
+                part = self._unpack_reset(worker, (True, reply))
+                final_obs = np.full(n, None, dtype=object)
+                for i in range(n):
+                    final_obs[i] = _row(last, i)
+                part["infos"] = {**part["infos"], **flag, "final_obs": final_obs, "_final_obs": np.ones(n, bool),
+                                 "final_info": dict(flag), "_final_info": np.ones(n, dtype=bool)}
+            else:
+                if self.autoreset_mode == AutoresetMode.DISABLED:
+                    self._send(worker, "reset", (None, None))
+                    ok, reply = self._receive(worker, self.timeout, "reset")
+                    if not ok:
+                        self.close()
+                        raise WorkerError(f"worker {w} failed again after its restart: {reply}")
+                part = {"obs": last, "infos": dict(flag), "restored": True}
+            out[w] = part
+        return out
+
+    def action_masks(self) -> np.ndarray:
+        """bool ``(num_envs, mask_size)``: legal actions of the latest observations (kept from the infos)."""
+        if not self.mask_size or not self._masks_seen:
+            raise AttributeError("the workers' envs give no action masks (no info['action_mask'])")
+        return self._masks.copy()
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Call ``name`` on every worker's batch env; one result per worker."""
+        self._check_open()
+        for worker in self._workers:
+            self._send(worker, "call", (name, args, kwargs))
+        replies = self._gather(self._workers, self.timeout, f"call {name!r}")
+        failures = {w: why for w, (ok, why) in replies.items() if not ok}
+        if failures:
+            self._fail(failures)
+            raise WorkerError(f"workers {sorted(failures)} failed during call {name!r} and were rebuilt")
+        return tuple(replies[w.index][1] for w in self._workers)
+
+    def render(self) -> tuple[Any, ...]:
+        """Each worker's ``render()`` result."""
+        return self.call("render")
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for worker in self._workers:
+            if worker.process is not None and worker.process.is_alive():
+                self._send(worker, "close")
+        for worker in self._workers:
+            self._stop_process(worker, graceful=True)
+        if self._block is not None:
+            self._block.close()
+            self._block = None
+
+    def close(self, **kwargs: Any) -> None:
+        """Stop every worker (asking first, then killing) and free the shared memory. Idempotent."""
+        if self.closed:
+            return
+        self.close_extras(**kwargs)
+        self.closed = True
+
+    def __enter__(self) -> SubprocVectorEnv:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    def __repr__(self) -> str:
+        sizes = [w.size for w in self._workers]
+        mode = getattr(self, "autoreset_mode", None)
+        return (f"SubprocVectorEnv(num_envs={getattr(self, 'num_envs', '?')}, workers={sizes}, "
+                f"start_method={self.start_method!r}, autoreset_mode={getattr(mode, 'value', None)})")
+
+    @property
+    def processes(self) -> list[Any]:
+        """The live worker processes (for monitoring; do not stop them by hand)."""
+        return [w.process for w in self._workers if w.process is not None]
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Helpers.
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError("this SubprocVectorEnv is closed")
+
+    def _stop_process(self, worker: _Worker, graceful: bool) -> None:
+        process = worker.process
+        if process is None:
+            return
+        if graceful:
+            process.join(2.0)
+        if process.is_alive():
+            process.kill()
+            process.join(5.0)
+        if worker.conn is not None:
+            worker.conn.close()
+        worker.process = worker.conn = None
+
+    def _unpack_reset(self, worker: _Worker, reply: tuple[bool, Any] | None) -> dict[str, Any]:
+        if reply is None:  # not reset this time: its rows keep their observations, no infos
+            return {"obs": None, "infos": {}, "restored": True}
+        obs_part, infos = reply[1]
+        return {"obs": obs_part, "infos": infos}
+
+    def _observations(self, parts: list[dict[str, Any]]) -> Any:
+        """The batch's observations: each worker's rows from shared memory, from the pipe, or kept from before."""
+        rows = []
+        for worker, part in zip(self._workers, parts, strict=True):
+            self._restore_masks(worker, part["infos"])
+            if part.get("restored"):
+                obs = worker.last_obs
+            elif part.get("obs") is not None:
+                obs = part["obs"]
+            else:
+                obs = _read_obs(self._block, worker.start, worker.stop)
+            worker.last_obs = obs
+            rows.append(obs)
+        return _concat_obs(rows)
+
+    def _restore_masks(self, worker: _Worker, infos: dict[str, Any]) -> None:
+        """Put a worker's masks from shared memory back into its infos and keep them for ``action_masks()``."""
+        present = infos.get(f"_{MASK_KEY}")
+        if not self.mask_size or present is None or MASK_KEY in infos:
+            return
+        masks = self._block.arrays["mask"][worker.start:worker.stop]
+        self._masks[worker.start:worker.stop][present] = masks[present] != 0
+        self._masks_seen = True
+        infos[MASK_KEY] = np.where(np.asarray(present)[:, None], masks, 0).astype(np.int8)
+
+
+def _first_line(text: str) -> str:
+    """The exception line of a traceback text (the text itself when it is one line)."""
+    lines = str(text).strip().splitlines()
+    return lines[-1] if lines else ""
+
+
+def _unpack_error(value: tuple[bytes | None, str], index: int) -> BaseException:
+    blob, text = value
+    err: BaseException | None = None
+    if blob is not None:
+        try:
+            err = cloudpickle.loads(blob)
+        except Exception:
+            err = None
+    if err is None:
+        err = RuntimeError(text.strip().splitlines()[-1] if text.strip() else "unknown error")
+    if hasattr(err, "add_note"):
+        err.add_note(f"(raised in SubprocVectorEnv worker {index}; its traceback:)\n{text}")
+    return err
+
+
+def _parse_mode(mode: AutoresetMode | str) -> AutoresetMode:
+    if isinstance(mode, AutoresetMode):
+        return mode
+    if isinstance(mode, str) and mode in _AUTORESET_NAMES:
+        return _AUTORESET_NAMES[mode]
+    raise ValueError(f"autoreset_mode must be an AutoresetMode or one of {sorted(_AUTORESET_NAMES)}, got {mode!r}")
+
+
+def _split_seed(seed: Any, n: int) -> list[int | None] | None:
+    if seed is None:
+        return None
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        return [int(seed) + i for i in range(n)]
+    if isinstance(seed, Sequence) and len(seed) == n:
+        return list(seed)
+    raise ValueError(f"seed must be None, an int, or a list of {n} seeds (one per battle), got {seed!r}")
+
+
+def _compact_seed(seeds: list[int | None] | None) -> Any:
+    """A worker's seeds as an int when they count up from its first battle's (what a batch env expects)."""
+    if seeds is None or all(s is None for s in seeds):
+        return None
+    if all(s is not None for s in seeds) and seeds == list(range(seeds[0], seeds[0] + len(seeds))):
+        return int(seeds[0])
+    return seeds
+
+
+def make_subproc_env(map_name: str = "3m", num_workers: int = 2, envs_per_worker: int = 4, *,
+                     autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, start_method: str | None = None,
+                     timeout: float = 60.0, on_worker_error: str = "raise", **env_kwargs: Any) -> SubprocVectorEnv:
+    """``num_workers`` processes, each running a :class:`~smac_hard_gym.vector.NativeVectorEnv` of
+    ``envs_per_worker`` battles of ``map_name`` (``env_kwargs`` go to it: opponent, obs_mode, backend, ...)."""
+    for name, value in (("num_workers", num_workers), ("envs_per_worker", envs_per_worker)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be a positive int, got {value!r}")
+    from smac_hard_gym.vector import NativeVectorEnv
+
+    mode = _parse_mode(autoreset_mode)
+    factory = functools.partial(NativeVectorEnv, map_name, num_envs=int(envs_per_worker), autoreset_mode=mode,
+                                **env_kwargs)
+    return SubprocVectorEnv([factory] * int(num_workers), autoreset_mode=mode, start_method=start_method,
+                            timeout=timeout, on_worker_error=on_worker_error)

@@ -1,0 +1,428 @@
+"""MaskablePPO training and masked win-rate evaluation on the native vector env (``smac-hard-gym train`` / ``eval``).
+
+Needs the ``[train]`` extra (torch, stable-baselines3, sb3-contrib, matplotlib); everything heavy is imported inside
+the functions, so ``import smac_hard_gym.training`` is cheap.
+
+- :func:`train`: MaskablePPO on a :class:`~smac_hard_gym.vector.NativeVectorEnv` (``SAME_STEP``) through the SB3
+  adapter, a masked deterministic win-rate evaluation on a schedule, and the run's files in ``out``:
+  ``model.zip``, ``config.json``, ``curve.csv`` (timesteps, win rate, return, time inside the env), ``curve.png``
+  and ``summary.json``. Time spent in ``env.step`` and ``action_masks`` is measured, so the env's share of the
+  wall time is part of every report.
+- :func:`evaluate`: win rate of a model over exactly ``episodes`` episodes, per opponent script.
+- :func:`evaluate_scripts`: one evaluation per script of a pool, and the pool's mixture (the paper's black-box
+  evaluation when the pool is ``"blackbox"``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["TrainConfig", "EvalResult", "train", "evaluate", "evaluate_scripts", "resolve_opponents",
+           "load_run_config", "CURVE_COLUMNS"]
+
+CURVE_COLUMNS = ("timesteps", "win_rate", "mean_return", "mean_length", "episodes", "train_win_rate",
+                 "train_episodes", "wall_s", "env_s", "env_fraction")
+MIXTURE_ROW = "mixture"
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run depends on (written to ``config.json``)."""
+
+    map_name: str = "3m"
+    opponent: str = "default"  # a pool ("default", "blackbox"), a script name, or names joined by commas
+    timesteps: int = 50_000
+    num_envs: int = 64
+    seed: int = 0
+    out: str = ""  # default: runs/<map>-<opponent>-s<seed>
+    eval_every: int = 0  # env steps between evaluations; 0: a tenth of the run
+    eval_episodes: int = 32
+    eval_envs: int = 16
+    obs_mode: str = "joint"
+    n_steps: int = 32  # per env and rollout: num_envs * n_steps samples per update
+    batch_size: int = 512
+    n_epochs: int = 10
+    learning_rate: float = 5e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.01
+    net_arch: list[int] = field(default_factory=lambda: [128, 128])
+    torch_threads: int = 1
+    env_threads: int = 1  # numba threads for the engine batch
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("timesteps", "num_envs", "eval_episodes", "eval_envs", "n_steps", "batch_size", "n_epochs",
+                     "torch_threads", "env_threads"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{name} must be a positive int, got {value!r}")
+        if self.eval_every < 0:
+            raise ValueError(f"eval_every must be >= 0 (0: a tenth of the run), got {self.eval_every!r}")
+        if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
+            raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
+        if not self.out:
+            self.out = str(Path("runs") / f"{self.map_name}-{self.opponent.replace(',', '+')}-s{self.seed}")
+
+    @property
+    def eval_interval(self) -> int:
+        return self.eval_every or max(self.timesteps // 10, self.num_envs * self.n_steps)
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of the envs this run trains and evaluates on."""
+        return {"map_name": self.map_name, "obs_mode": self.obs_mode}
+
+
+@dataclass
+class EvalResult:
+    """Masked win rate over ``episodes`` episodes, and per opponent script."""
+
+    episodes: int
+    wins: int
+    mean_return: float
+    mean_length: float
+    per_opponent: dict[str, dict[str, float]]
+
+    @property
+    def win_rate(self) -> float:
+        return self.wins / self.episodes if self.episodes else 0.0
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Evaluation.
+
+
+def evaluate(model: Any, venv: Any, episodes: int, *, seed: int | None = None,
+             deterministic: bool = True) -> EvalResult:
+    """Run ``model`` (anything with SB3's ``predict(obs, action_masks=..., deterministic=...)``) with action masks
+    on a ``SAME_STEP`` gymnasium vector env until exactly ``episodes`` episodes have finished.
+
+    Battle i contributes the first ``(episodes + i) // num_envs`` of its episodes, so short episodes are not
+    over-counted (the bias of stopping at the first ``episodes`` finishes).
+    """
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    n = venv.num_envs
+    quota = np.array([(episodes + i) // n for i in range(n)])
+    counted = np.zeros(n, dtype=np.int64)
+    returns = np.zeros(n)
+    lengths = np.zeros(n, dtype=np.int64)
+    wins, total_return, total_length = 0, 0.0, 0
+    per_opponent: dict[str, dict[str, float]] = {}
+    obs, _ = venv.reset(seed=seed)
+    while (counted < quota).any():
+        actions, _ = model.predict(obs, action_masks=venv.action_masks(), deterministic=deterministic)
+        obs, rewards, terminated, truncated, infos = venv.step(actions)
+        returns += rewards
+        lengths += 1
+        for i in np.flatnonzero(terminated | truncated):
+            if counted[i] < quota[i]:
+                final = infos["final_info"]
+                won = bool(final["battle_won"][i])
+                name = str(final["opponent"][i])
+                row = per_opponent.setdefault(name, {"episodes": 0, "wins": 0})
+                row["episodes"] += 1
+                row["wins"] += won
+                wins += won
+                total_return += returns[i]
+                total_length += lengths[i]
+                counted[i] += 1
+            returns[i] = 0.0
+            lengths[i] = 0
+    for row in per_opponent.values():
+        row["win_rate"] = row["wins"] / row["episodes"]
+    return EvalResult(episodes, wins, total_return / episodes, total_length / episodes,
+                      dict(sorted(per_opponent.items())))
+
+
+def resolve_opponents(map_name: str, opponent: str) -> tuple[list[str], np.ndarray]:
+    """The scripts an evaluation covers and their mixture weights: ``"all"`` (every script that plays the map),
+    ``"default"`` / ``"blackbox"`` (the map's pools), a script name, or names joined by commas (equal weights)."""
+    from smac_hard_gym.opponents import make_opponent, scripts_for_map
+
+    if opponent == "all":
+        names = sorted(scripts_for_map(map_name))
+        return names, np.full(len(names), 1.0 / len(names))
+    entries: Any = opponent.split(",") if "," in opponent else opponent
+    script = make_opponent(map_name, entries)
+    names = getattr(script, "names", None) or [script.name]
+    probs = getattr(script, "probs", None)
+    return list(names), np.full(len(names), 1.0 / len(names)) if probs is None else np.asarray(probs)
+
+
+def evaluate_scripts(model: Any, map_name: str, opponent: str, episodes: int, *, num_envs: int = 16,
+                     seed: int = 0, env_kwargs: dict[str, Any] | None = None,
+                     log: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Evaluate ``model`` for ``episodes`` episodes against each script of ``opponent`` (see
+    :func:`resolve_opponents`); the mixture's win rate is the weighted mean of the scripts' (its expectation)."""
+    from smac_hard_gym.vector import NativeVectorEnv
+
+    names, probs = resolve_opponents(map_name, opponent)
+    kwargs = dict(env_kwargs or {})
+    kwargs.pop("map_name", None)
+    rows: dict[str, dict[str, float]] = {}
+    for name in names:
+        venv = NativeVectorEnv(map_name, min(num_envs, episodes), autoreset_mode="SameStep", opponent=name, **kwargs)
+        try:
+            result = evaluate(model, venv, episodes, seed=seed)
+        finally:
+            venv.close()
+        rows[name] = {"episodes": result.episodes, "wins": result.wins, "win_rate": result.win_rate,
+                      "mean_return": result.mean_return, "mean_length": result.mean_length}
+        if log is not None:
+            log(f"  {name:<20} win rate {result.win_rate:6.3f}  ({result.wins}/{result.episodes})")
+    mixture = float(sum(p * rows[n]["win_rate"] for n, p in zip(names, probs, strict=True)))
+    return {"map": map_name, "opponent": opponent, "episodes_per_script": episodes, "seed": seed,
+            "scripts": rows, "weights": dict(zip(names, (float(p) for p in probs), strict=True)),
+            MIXTURE_ROW: {"win_rate": mixture}}
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Training.
+
+
+def _timed_vec_env_class() -> type:
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    class TimedVecEnv(VecEnvWrapper):
+        """Adds up the wall time spent inside the env: ``step_async/step_wait``, ``reset`` and the masks."""
+
+        def __init__(self, venv: Any) -> None:
+            super().__init__(venv)
+            self.env_seconds = 0.0
+
+        def reset(self) -> Any:
+            start = time.perf_counter()
+            try:
+                return self.venv.reset()
+            finally:
+                self.env_seconds += time.perf_counter() - start
+
+        def step_async(self, actions: np.ndarray) -> None:
+            start = time.perf_counter()
+            self.venv.step_async(actions)
+            self.env_seconds += time.perf_counter() - start
+
+        def step_wait(self) -> Any:
+            start = time.perf_counter()
+            try:
+                return self.venv.step_wait()
+            finally:
+                self.env_seconds += time.perf_counter() - start
+
+        def env_method(self, method_name: str, *args: Any, indices: Any = None, **kwargs: Any) -> list[Any]:
+            start = time.perf_counter()
+            try:
+                return self.venv.env_method(method_name, *args, indices=indices, **kwargs)
+            finally:
+                self.env_seconds += time.perf_counter() - start
+
+    return TimedVecEnv
+
+
+def _callback_class() -> type:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class EvalAndProgress(BaseCallback):
+        """Progress bar, and a masked win-rate evaluation every ``interval`` steps (plus at the start and end)."""
+
+        def __init__(self, evaluate_now: Callable[..., dict[str, Any]], interval: int, total: int,
+                     progress: bool) -> None:
+            super().__init__()
+            self.evaluate_now = evaluate_now
+            self.interval = interval
+            self.total = total
+            self.progress = progress
+            self.bar: Any = None
+            self.next_eval = interval
+            self.train_results: list[bool] = []
+
+        def take_train_results(self) -> list[bool]:
+            results, self.train_results = self.train_results, []
+            return results
+
+        def _on_training_start(self) -> None:
+            if self.progress:
+                import sys
+
+                from tqdm import tqdm
+
+                # SB3 stops at the first whole rollout past the requested steps.
+                rollout = self.training_env.num_envs * self.model.n_steps
+                total = -(-self.total // rollout) * rollout
+                self.bar = tqdm(total=total, unit="step", desc="train", dynamic_ncols=True,
+                                mininterval=0.5 if sys.stderr.isatty() else 30.0)
+
+        def _on_step(self) -> bool:
+            if self.bar is not None:
+                self.bar.update(self.training_env.num_envs)
+            for done, info in zip(self.locals["dones"], self.locals["infos"], strict=True):
+                if done:  # the sampling policy's own results, between two evaluations
+                    self.train_results.append(bool(info.get("is_success", False)))
+            if self.num_timesteps >= self.next_eval:
+                self.next_eval += self.interval
+                row = self.evaluate_now(self.num_timesteps, self.take_train_results())
+                if self.bar is not None:
+                    self.bar.set_postfix(win_rate=f"{row['win_rate']:.2f}", env=f"{row['env_fraction']:.0%}")
+            return True
+
+        def _on_training_end(self) -> None:
+            if self.bar is not None:
+                self.bar.close()
+
+    return EvalAndProgress
+
+
+def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Train MaskablePPO as ``config`` says; returns the summary (also written to ``summary.json``)."""
+    import numba
+    import torch
+    from sb3_contrib import MaskablePPO
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from smac_hard_gym.vector import NativeVectorEnv
+    from smac_hard_gym.wrappers.sb3 import SB3VecEnv
+
+    torch.set_num_threads(config.torch_threads)
+    numba.set_num_threads(min(config.env_threads, numba.config.NUMBA_NUM_THREADS))
+    out = Path(config.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(json.dumps(asdict(config), indent=2) + "\n")
+
+    opponent: Any = config.opponent.split(",") if "," in config.opponent else config.opponent
+    kwargs = config.env_kwargs()
+    map_name = kwargs.pop("map_name")
+    timed = _timed_vec_env_class()(SB3VecEnv(NativeVectorEnv(
+        map_name, config.num_envs, autoreset_mode="SameStep", opponent=opponent, **kwargs)))
+    venv = VecMonitor(timed)
+    eval_env = NativeVectorEnv(map_name, min(config.eval_envs, config.eval_episodes), autoreset_mode="SameStep",
+                               opponent=opponent, **kwargs)
+    policy = "MultiInputPolicy" if config.obs_mode == "dict" else "MlpPolicy"
+    model = MaskablePPO(
+        policy, venv, n_steps=config.n_steps, batch_size=config.batch_size, n_epochs=config.n_epochs,
+        learning_rate=config.learning_rate, gamma=config.gamma, gae_lambda=config.gae_lambda,
+        clip_range=config.clip_range, ent_coef=config.ent_coef, seed=config.seed, device="cpu", verbose=0,
+        policy_kwargs={"net_arch": [int(n) for n in config.net_arch]})
+
+    rows: list[dict[str, Any]] = []
+    clock = {"start": time.perf_counter(), "eval": 0.0}
+
+    def evaluate_now(timesteps: int, train_results: Sequence[bool] = ()) -> dict[str, Any]:
+        start = time.perf_counter()
+        result = evaluate(model, eval_env, config.eval_episodes, seed=config.seed + 1_000_003)
+        clock["eval"] += time.perf_counter() - start
+        wall = time.perf_counter() - clock["start"] - clock["eval"]  # training time, evaluations left out
+        row = {"timesteps": timesteps, "win_rate": result.win_rate, "mean_return": result.mean_return,
+               "mean_length": result.mean_length, "episodes": result.episodes,
+               "train_win_rate": float(np.mean(train_results)) if len(train_results) else float("nan"),
+               "train_episodes": len(train_results), "wall_s": wall,
+               "env_s": timed.env_seconds, "env_fraction": timed.env_seconds / wall if wall > 0 else 0.0,
+               "per_opponent": {k: v["win_rate"] for k, v in result.per_opponent.items()}}
+        rows.append(row)
+        _write_curve(out / "curve.csv", rows)
+        return row
+
+    callback = _callback_class()(evaluate_now, config.eval_interval, config.timesteps, config.progress)
+    evaluate_now(0)
+    clock["start"] = time.perf_counter()
+    clock["eval"] = 0.0
+    timed.env_seconds = 0.0
+    try:
+        model.learn(config.timesteps, callback=callback)
+        if rows[-1]["timesteps"] != model.num_timesteps:
+            evaluate_now(model.num_timesteps, callback.take_train_results())
+    finally:
+        venv.close()
+        eval_env.close()
+    model.save(out / "model.zip")
+    plotted = _plot_curve(out / "curve.png", rows, f"MaskablePPO on {config.map_name} vs {config.opponent}")
+    summary = _summary(config, rows)
+    summary["files"] = {"model": str(out / "model.zip"), "curve_csv": str(out / "curve.csv"),
+                        "curve_png": str(out / "curve.png") if plotted else None,
+                        "config": str(out / "config.json")}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def _summary(config: TrainConfig, rows: list[dict[str, Any]]) -> dict[str, Any]:
+    final = rows[-1]
+    reached = next((r["timesteps"] for r in rows if r["win_rate"] >= 0.8), None)
+    return {
+        "map": config.map_name, "opponent": config.opponent, "timesteps": final["timesteps"],
+        "final_win_rate": final["win_rate"], "best_win_rate": max(r["win_rate"] for r in rows),
+        "final_train_win_rate": final["train_win_rate"] if final["train_episodes"] else None,
+        "final_train_episodes": final["train_episodes"],
+        "first_timesteps_at_0.8": reached, "train_wall_s": final["wall_s"], "env_s": final["env_s"],
+        "env_fraction": final["env_fraction"], "final_per_opponent": final["per_opponent"],
+        "eval_episodes": config.eval_episodes,
+    }
+
+
+def _write_curve(path: Path, rows: list[dict[str, Any]]) -> None:
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(CURVE_COLUMNS)
+        for row in rows:
+            writer.writerow([_fmt(row[c]) for c in CURVE_COLUMNS])
+
+
+def _fmt(value: Any) -> Any:
+    if isinstance(value, float):
+        return f"{value:.4f}" if math.isfinite(value) else ""
+    return value
+
+
+def _plot_curve(path: Path, rows: list[dict[str, Any]], title: str) -> bool:
+    """Win rate and mean return against env steps; False when matplotlib is missing."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    steps = [r["timesteps"] for r in rows]
+    fig, left = plt.subplots(figsize=(7, 4), dpi=100)
+    left.plot(steps, [r["win_rate"] for r in rows], "o-", color="tab:red", label="test win rate (deterministic)")
+    left.plot(steps, [r["train_win_rate"] for r in rows], ".:", color="tab:orange",
+              label="training episodes (sampled)")
+    left.set_xlabel("env steps")
+    left.set_ylabel("win rate")
+    left.set_ylim(-0.02, 1.02)
+    left.grid(alpha=0.3)
+    right = left.twinx()
+    right.plot(steps, [r["mean_return"] for r in rows], "s--", color="tab:blue", alpha=0.6, label="mean return")
+    right.set_ylabel("mean return")
+    left.set_title(title)
+    handles = left.get_legend_handles_labels()[0] + right.get_legend_handles_labels()[0]
+    left.legend(handles=handles, loc="center right", fontsize="small")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return True
+
+
+def load_run_config(model_path: str | Path) -> TrainConfig | None:
+    """The :class:`TrainConfig` saved next to a model by :func:`train`, if there is one."""
+    path = Path(model_path).with_name("config.json")
+    if not path.is_file():
+        return None
+    data = json.loads(path.read_text())
+    known = {f.name for f in fields(TrainConfig)}
+    return TrainConfig(**{k: v for k, v in data.items() if k in known})
+
+
+def format_table(rows: Sequence[tuple[str, ...]]) -> str:
+    """Left-aligned text columns."""
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows)

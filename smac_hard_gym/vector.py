@@ -1,0 +1,271 @@
+"""``NativeVectorEnv``: N battles of one map stepped as one batch of the embedded engine (the ``vector_entry_point``
+of every ``SMACHard-*`` id).
+
+>>> import gymnasium, smac_hard_gym
+>>> envs = gymnasium.make_vec("SMACHard-3m-v0", num_envs=4, autoreset_mode="SameStep")
+>>> obs, infos = envs.reset(seed=0)
+>>> obs.shape, envs.action_masks().shape
+((4, 90), (4, 27))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from smac_hard_gym.core import TwoPlayerCore
+from smac_hard_gym.engine.state import RED
+from smac_hard_gym.features import RED_WON, SmacOptions
+from smac_hard_gym.gym_env import INVALID_ACTION_POLICIES, RENDER_FPS, JointView, make_options
+
+__all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
+
+# Every spelling of a mode that users meet: gymnasium's values ("NextStep"), enum names, RLlib's "next_step".
+_AUTORESET_NAMES = {key: mode for mode in AutoresetMode for key in (mode.value, mode.name, mode.name.lower())}
+
+
+def parse_autoreset_mode(mode: AutoresetMode | str) -> AutoresetMode:
+    """An :class:`~gymnasium.vector.AutoresetMode` from the enum or one of its spellings."""
+    if isinstance(mode, AutoresetMode):
+        return mode
+    if isinstance(mode, str) and mode in _AUTORESET_NAMES:
+        return _AUTORESET_NAMES[mode]
+    raise ValueError(f"autoreset_mode must be an AutoresetMode or one of {sorted(_AUTORESET_NAMES)}, got {mode!r}")
+
+
+def _masked(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``values`` (a fresh array) with rows outside ``rows`` zeroed, as gymnasium's info batching leaves them."""
+    if rows.all():
+        return values
+    out = np.full(values.shape, None, dtype=object) if values.dtype == object else np.zeros_like(values)
+    out[rows] = values[rows]
+    return out
+
+
+class NativeVectorEnv(VectorEnv):
+    """``num_envs`` battles of one map in one engine batch, with gymnasium's vector API.
+
+    Each battle is exactly a :class:`~smac_hard_gym.gym_env.SMACHardEnv` (same spaces, rewards, info keys; battle b
+    of ``reset(seed=s)`` plays like a single env reset with seed ``s + b``), but all battles advance in one engine
+    call and the features are computed for the whole batch at once.
+
+    Autoreset (``autoreset_mode``, recorded in ``metadata``):
+
+    - ``NEXT_STEP`` (default): a battle that ends returns its terminal observation; on the next step its action is
+      ignored and it returns the first observation of a new episode with reward 0 and both flags False.
+    - ``SAME_STEP`` (what SB3 wants): a battle that ends is reset inside the same step; the returned observation is
+      the new episode's, and ``infos["final_obs"]`` / ``infos["final_info"]`` hold the terminal ones.
+    - ``DISABLED``: ended battles wait for ``reset(options={"reset_mask": mask})``; stepping them is an error.
+
+    Infos are gymnasium's dict of arrays with ``_key`` masks: ``battle_won``, ``dead_allies``, ``dead_enemies``,
+    ``opponent``, ``action_mask`` ((N, n_agents * n_actions) int8) and ``invalid_actions`` (``invalid_action=
+    "noop"``). ``action_masks()`` returns the bool masks of the current observations, shape (N, n_agents * n_actions).
+    ``max_episode_steps`` shortens the map's episode limit (never lengthens it). ``render()`` draws battle
+    ``render_battles`` (an int), or a tiled grid of the listed battles (a list, or ``"all"``).
+    """
+
+    def __init__(self, map_name: str = "3m", num_envs: int = 1, *,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, max_episode_steps: int | None = None,
+                 opponent: Any = "default", opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
+                 invalid_action: str = "raise", render_mode: str | None = None,
+                 render_battles: int | Sequence[int] | str = 0, backend: str = "native",
+                 backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
+                 **smac_options: Any) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
+        if invalid_action not in INVALID_ACTION_POLICIES:
+            raise ValueError(f"invalid_action must be one of {INVALID_ACTION_POLICIES}, got {invalid_action!r}")
+        from smac_hard_gym.render import check_render_mode  # the renderer itself loads on the first render()
+
+        self.render_mode = check_render_mode(render_mode)
+        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
+        self.num_envs = int(num_envs)
+        self.invalid_action = invalid_action
+        self.core = TwoPlayerCore(map_name, self.num_envs, opponent=opponent, opponent_probs=opponent_probs,
+                                  backend=backend, step_mul=step_mul, options=make_options(options, smac_options),
+                                  backend_options=backend_options)
+        self.view = JointView(self.core, obs_mode)
+        self.map_name = self.core.spec.name
+        self.episode_limit = self.core.spec.episode_limit
+        if max_episode_steps is not None:
+            if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
+                    or max_episode_steps < 1:
+                raise ValueError(f"max_episode_steps must be a positive int or None, got {max_episode_steps!r}")
+            self.episode_limit = min(self.episode_limit, int(max_episode_steps))
+        self.render_battles = self._check_render_battles(render_battles)
+        self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": ["rgb_array", "human"],
+                         "render_fps": RENDER_FPS}
+        self.single_action_space = self.view.action_space
+        self.single_observation_space = self.view.observation_space
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._ended = np.zeros(self.num_envs, dtype=bool)  # ended episodes that wait for a reset
+        self._renderer = None
+
+    def __repr__(self) -> str:
+        env_id = self.spec.id if self.spec is not None else self.map_name
+        return (f"NativeVectorEnv({env_id}, num_envs={self.num_envs}, "
+                f"autoreset_mode={self.autoreset_mode.value})")
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Gymnasium API.
+
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset every battle, or those of ``options["reset_mask"]`` (bool (num_envs,)). An int ``seed`` gives
+        battle b the seed ``seed + b``; a list gives one seed (or None) per battle."""
+        rows = self._reset_rows(options)
+        seeds = self._seed_list(seed)
+        if isinstance(seed, (int, np.integer)):
+            super().reset(seed=int(seed))
+        self._reset_battles(rows, seeds)
+        return self.view.observations(), self._info(np.zeros(self.num_envs, dtype=bool), rows)
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        acts = np.asarray(actions)
+        shape = (self.num_envs, self.view.n_agents)
+        if acts.shape != shape:
+            raise ValueError(f"actions must have shape {shape} (envs, agents), got {acts.shape}")
+        mode = self.autoreset_mode
+        if mode == AutoresetMode.DISABLED and self._ended.any():
+            raise RuntimeError(f"battles {np.flatnonzero(self._ended).tolist()} ended and autoreset is disabled; "
+                               "reset them with reset(options={'reset_mask': mask}) before stepping")
+        core = self.core
+        acts, replaced = self.view.resolve_actions(acts, self.invalid_action, ~core.done)
+        result = core.step(acts)
+        terminated = result.terminated.copy()
+        # Truncated at the limit even when the battle also ended on that step, as gymnasium's TimeLimit says.
+        truncated = result.stepped & (core.episode_step >= self.episode_limit)
+        core.done |= truncated  # freeze the battle until its reset, as the core does at the map's own limit
+        ended = terminated | truncated
+        rewards = result.reward[:, RED].astype(np.float64)
+
+        stepped = result.stepped.copy()
+        resets = np.zeros(self.num_envs, dtype=bool)
+        infos: dict[str, Any] = {}
+        if mode == AutoresetMode.SAME_STEP and ended.any():
+            rows = np.flatnonzero(ended)
+            final_obs = self.view.observations(rows)
+            infos["final_obs"] = np.full(self.num_envs, None, dtype=object)
+            for k, b in enumerate(rows):
+                infos["final_obs"][b] = ({key: v[k] for key, v in final_obs.items()} if isinstance(final_obs, dict)
+                                         else final_obs[k])
+            infos["_final_obs"] = ended.copy()
+            infos["final_info"] = self._info(ended, resets, result, replaced)
+            infos["_final_info"] = ended.copy()
+            resets, stepped = ended, stepped & ~ended
+        elif mode == AutoresetMode.NEXT_STEP:
+            resets = self._ended.copy()
+        self._reset_battles(resets, None)
+        self._ended = ended if mode != AutoresetMode.SAME_STEP else np.zeros(self.num_envs, dtype=bool)
+        infos.update(self._info(stepped, resets, result, replaced))
+        return self.view.observations(), rewards, terminated, truncated, infos
+
+    def action_masks(self) -> np.ndarray:
+        """Legal actions of the current observations: bool ``(num_envs, n_agents * n_actions)`` (a new array)."""
+        return self.view.masks()
+
+    def render(self) -> np.ndarray | None:
+        """Battle ``render_battles`` as an RGB frame, or a grid of several (``"rgb_array"``); ``"human"`` shows it."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called with render_mode=None; pass render_mode='rgb_array' or 'human'")
+            return None
+        if self._renderer is None:
+            from smac_hard_gym.render import EnvRenderer
+
+            self._renderer = EnvRenderer(self.core.spec, self.render_mode, step_mul=self.core.backend.step_mul)
+        names = self.core.opponent_names()
+        steps = self.core.episode_step
+        if isinstance(self.render_battles, list):
+            return self._renderer.render(self.core.state, self.render_battles,
+                                         [int(steps[b]) for b in self.render_battles],
+                                         [names[b] for b in self.render_battles])
+        b = self.render_battles
+        return self._renderer.render(self.core.state, b, int(steps[b]), names[b])
+
+    def __enter__(self) -> NativeVectorEnv:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        self.core.close()
+
+    # -----------------------------------------------------------------------------------------------------------
+    # Helpers.
+
+    def _reset_battles(self, rows: np.ndarray, seeds: list[int | None] | None) -> None:
+        """Reset the battles of bool ``rows``; ``seeds`` holds one seed (or None) per battle."""
+        if not rows.any():
+            return
+        indices = np.flatnonzero(rows)
+        seeded = [b for b in indices if seeds is not None and seeds[b] is not None]
+        unseeded = [b for b in indices if seeds is None or seeds[b] is None]
+        if seeded:
+            self.core.reset(seeded, seed=[seeds[b] for b in seeded])
+        if unseeded:
+            self.core.reset(unseeded)
+        self._ended[rows] = False
+
+    def _info(self, stepped: np.ndarray, resets: np.ndarray, result: Any = None,
+              replaced: np.ndarray | None = None) -> dict[str, Any]:
+        """Batched infos as single envs give them: step keys for the ``stepped`` battles, ``opponent`` and
+        ``action_mask`` (of the current state) for those and the ``resets`` battles; each key with its ``_key``."""
+        values: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        if stepped.any():
+            values["battle_won"] = (result.outcome == RED_WON, stepped)
+            values["dead_allies"] = (np.asarray(result.dead_red, dtype=np.int64), stepped)
+            values["dead_enemies"] = (np.asarray(result.dead_blue, dtype=np.int64), stepped)
+            if self.invalid_action == "noop":
+                values["invalid_actions"] = (replaced, stepped)
+        shown = stepped | resets
+        if shown.any():
+            values["opponent"] = (np.asarray(self.core.opponent_names(), dtype=object), shown)
+            values["action_mask"] = (self.view.masks().astype(np.int8), shown)
+        infos: dict[str, Any] = {}
+        for key, (value, rows) in values.items():
+            infos[key], infos[f"_{key}"] = _masked(value, rows), rows.copy()
+        return infos
+
+    def _reset_rows(self, options: dict[str, Any] | None) -> np.ndarray:
+        if options is None or "reset_mask" not in options:
+            return np.ones(self.num_envs, dtype=bool)
+        mask = options["reset_mask"]
+        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({self.num_envs},), "
+                             f"got {mask!r}")
+        if not mask.any():
+            raise ValueError("options['reset_mask'] must select at least one battle")
+        return mask.copy()
+
+    def _seed_list(self, seed: Any) -> list[int | None] | None:
+        if seed is None:
+            return None
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            return [int(seed) + b for b in range(self.num_envs)]
+        if isinstance(seed, Sequence) and len(seed) == self.num_envs and all(
+                s is None or (isinstance(s, (int, np.integer)) and not isinstance(s, bool)) for s in seed):
+            return [None if s is None else int(s) for s in seed]
+        raise ValueError(f"seed must be None, an int, or a list of {self.num_envs} ints or None, got {seed!r}")
+
+    def _check_render_battles(self, battles: Any) -> int | list[int]:
+        if isinstance(battles, str) and battles == "all":
+            return list(range(self.num_envs))
+        if isinstance(battles, (int, np.integer)) and not isinstance(battles, bool):
+            if not 0 <= battles < self.num_envs:
+                raise ValueError(f"render_battles must lie in 0..{self.num_envs - 1}, got {battles}")
+            return int(battles)
+        if isinstance(battles, Sequence) and battles and all(
+                isinstance(b, (int, np.integer)) and 0 <= b < self.num_envs for b in battles):
+            return [int(b) for b in battles]
+        raise ValueError(f"render_battles must be a battle index, a non-empty list of them, or 'all' "
+                         f"(battles 0..{self.num_envs - 1}), got {battles!r}")

@@ -1,0 +1,128 @@
+"""The SB3 VecEnv adapter: terminal observations, TimeLimit.truncated, masks without round trips, autoreset modes,
+VecMonitor, MaskablePPO and MaskableEvalCallback."""
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from gymnasium.vector import AutoresetMode
+from sb3_contrib import MaskablePPO
+from sb3_contrib.common.maskable.callbacks import MaskableEvalCallback
+from sb3_contrib.common.maskable.utils import get_action_masks, is_masking_supported
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import VecMonitor
+
+import smac_hard_gym  # noqa: F401  (registers the ids)
+from smac_hard_gym.subproc import make_subproc_env
+from smac_hard_gym.vector import NativeVectorEnv
+from smac_hard_gym.wrappers.sb3 import SB3VecEnv
+
+torch.set_num_threads(1)
+
+
+def _pinned(mode, n=2):
+    # Nobody fights and episodes end by truncation after 3 steps; the timestep column tells the step.
+    env = NativeVectorEnv("3m", n, autoreset_mode=mode, opponent="stop", max_episode_steps=3,
+                          obs_timestep_number=True)
+    column = env.core.features[0].obs_feature_names().index("own_timestep")
+    return env, (lambda obs: np.rint(np.asarray(obs)[..., column] * 60).astype(int).tolist())
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.DISABLED])
+def test_terminal_observation_and_time_limit_flag(mode):
+    env, steps_of = _pinned(mode)
+    venv = SB3VecEnv(env)
+    obs = venv.reset()
+    assert steps_of(obs) == [0, 0]
+    stop = np.ones((2, 3), dtype=np.int64)
+    for _ in range(2):
+        obs, rewards, dones, infos = venv.step(stop)
+        assert not dones.any() and "terminal_observation" not in infos[0]
+    obs, rewards, dones, infos = venv.step(stop)
+    assert dones.tolist() == [True, True] and rewards.dtype == np.float32
+    assert steps_of(obs) == [0, 0]  # SB3 wants the next episode's first observation back
+    for info in infos:
+        assert steps_of(info["terminal_observation"]) == 3
+        assert info["TimeLimit.truncated"] is True  # truncated, not terminated: PPO bootstraps
+        assert info["is_success"] is False and info["opponent"] == "stop" and info["dead_allies"] == 0
+    assert venv.reset_infos[0]["opponent"] == "stop"
+    venv.close()
+
+
+def test_a_battle_result_is_terminal_not_truncated():
+    # Blue's "stop" script waits: red's marines walk up and attack, and one side is destroyed before the limit.
+    venv = SB3VecEnv(NativeVectorEnv("3m", 1, autoreset_mode="SameStep", opponent="stop"))
+    venv.reset()
+    for _ in range(60):
+        mask = venv.env_method("action_masks")[0].reshape(3, 9)
+        attack = mask[:, 6:]
+        # attack, else move east, else (dead) the only legal action
+        actions = np.where(attack.any(axis=1), 6 + attack.argmax(axis=1), np.where(mask[:, 4], 4, mask.argmax(1)))
+        obs, rewards, dones, infos = venv.step(actions[None])
+        if dones[0]:
+            break
+    assert dones[0] and infos[0]["TimeLimit.truncated"] is False
+    assert infos[0]["is_success"] == infos[0]["battle_won"]
+    venv.close()
+
+
+def test_next_step_vector_envs_are_refused_with_the_fix():
+    with pytest.raises(ValueError, match="autoreset_mode='SameStep'"):
+        SB3VecEnv(gym.make_vec("SMACHard-3m-v0", num_envs=2))
+    with pytest.raises(TypeError, match="gymnasium.vector.VectorEnv"):
+        SB3VecEnv(gym.make("SMACHard-3m-v0"))
+
+
+def test_masks_are_served_without_a_round_trip_to_the_workers(monkeypatch):
+    sub = make_subproc_env("3m", 2, 2, autoreset_mode="SameStep", opponent="base")
+    try:
+        venv = SB3VecEnv(sub)
+        venv.reset()
+        sent = []
+        monkeypatch.setattr(type(sub), "_send", lambda self, *args: sent.append(args) or True)
+        masks = get_action_masks(venv)
+        assert sent == [] and masks.shape == (4, 27) and is_masking_supported(venv)
+        np.testing.assert_array_equal(masks, sub.action_masks())
+        monkeypatch.undo()
+        rng = np.random.default_rng(0)
+        for _ in range(30):
+            masks = get_action_masks(venv).reshape(4, 3, 9)
+            actions = np.array([[rng.choice(np.flatnonzero(m)) for m in row] for row in masks])
+            venv.step(actions)  # an illegal action would raise: the served masks are the current ones
+    finally:
+        sub.close()
+
+
+def test_adapter_over_a_sync_vector_env_of_single_envs():
+    sync = gym.make_vec("SMACHard-3m-v0", num_envs=2, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}, wrappers=[Monitor])
+    venv = SB3VecEnv(sync)
+    venv.reset()
+    assert venv.env_is_wrapped(Monitor) == [True, True]
+    assert venv.get_attr("render_mode") == [None, None]
+    np.testing.assert_array_equal(np.stack(venv.env_method("action_masks")),
+                                  np.stack([e.unwrapped.action_masks() for e in sync.envs]))
+    venv.close()
+    native = SB3VecEnv(NativeVectorEnv("3m", 2, autoreset_mode="SameStep"))
+    assert native.env_is_wrapped(Monitor) == [False, False]
+    native.close()
+
+
+def test_maskable_ppo_and_eval_callback_run_without_warnings(tmp_path):
+    train_env = VecMonitor(SB3VecEnv(gym.make_vec("SMACHard-3m-v0", num_envs=4, autoreset_mode="SameStep",
+                                                  opponent="base")))
+    eval_env = VecMonitor(SB3VecEnv(gym.make_vec("SMACHard-3m-v0", num_envs=2, autoreset_mode="SameStep",
+                                                 opponent="base")))
+    # eval_freq counts vector steps: 512 env steps over 4 envs are 128 calls, so two evaluations.
+    callback = MaskableEvalCallback(eval_env, n_eval_episodes=2, eval_freq=64, log_path=str(tmp_path), verbose=0)
+    model = MaskablePPO("MlpPolicy", train_env, n_steps=64, batch_size=128, n_epochs=2, seed=0, device="cpu")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.learn(512, callback=callback)
+    assert model.num_timesteps == 512
+    assert len(model.ep_info_buffer) > 0  # VecMonitor saw whole episodes
+    assert len(callback.evaluations_results) == 2 and len(callback.evaluations_successes[0]) == 2
+    train_env.close()
+    eval_env.close()

@@ -1,0 +1,105 @@
+"""Training and evaluation: the CLI end to end on a tiny budget, exact episode counting of the evaluation, opponent
+pools, and MaskablePPO on the subprocess env."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import torch
+from sb3_contrib import MaskablePPO
+from stable_baselines3.common.vec_env import VecMonitor
+
+from smac_hard_gym.cli import main
+from smac_hard_gym.subproc import make_subproc_env
+from smac_hard_gym.training import CURVE_COLUMNS, evaluate, resolve_opponents
+from smac_hard_gym.vector import NativeVectorEnv
+from smac_hard_gym.wrappers.sb3 import SB3VecEnv
+
+torch.set_num_threads(1)
+
+
+class StopPolicy:
+    """Every living agent stops (action 1), dead ones no-op (0): the first legal action of each agent."""
+
+    def predict(self, obs, action_masks=None, deterministic=True):
+        masks = np.asarray(action_masks)
+        return masks.reshape(len(masks), -1, 9).argmax(axis=2), None
+
+
+def test_evaluation_counts_exactly_the_asked_episodes():
+    # Against the "stop" script nobody shoots: every 3m episode times out after SMAC's 60 steps, unwon.
+    env = NativeVectorEnv("3m", 2, autoreset_mode="SameStep", opponent="stop")
+    result = evaluate(StopPolicy(), env, 5, seed=0)
+    assert (result.episodes, result.wins, result.win_rate) == (5, 0, 0.0)
+    assert result.mean_length == 60.0 and result.mean_return == 0.0
+    assert result.per_opponent == {"stop": {"episodes": 5, "wins": 0, "win_rate": 0.0}}
+    with pytest.raises(ValueError, match="episodes must be >= 1"):
+        evaluate(StopPolicy(), env, 0)
+    env.close()
+
+
+def test_opponent_sets_for_evaluation():
+    # 3m's SMAC-HARD pool is its marine-line script plus base (smac_hard_reference.md §3); blackbox drops base.
+    assert resolve_opponents("3m", "default")[0] == ["line_front", "base"]
+    names, weights = resolve_opponents("3m", "blackbox")
+    assert names == ["line_front"] and weights.tolist() == [1.0]
+    names, weights = resolve_opponents("3m", "all")
+    assert {"base", "line_front", "stop"} <= set(names) and np.isclose(weights.sum(), 1.0)
+    assert resolve_opponents("3m", "base,stop") == (["base", "stop"], pytest.approx([0.5, 0.5]))
+    with pytest.raises(ValueError, match="unknown opponent"):
+        resolve_opponents("3m", "nobody")
+
+
+def test_train_and_eval_commands_end_to_end(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["train", "--map", "3m", "--opponent", "default", "--timesteps", "2048", "--num-envs", "4",
+                 "--n-steps", "64", "--batch-size", "128", "--epochs", "2", "--eval-every", "1024",
+                 "--eval-episodes", "4", "--seed", "3", "--out", str(out), "--no-progress"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("config:") and "map_name        3m" in printed
+    assert "time inside the env (step + masks)" in printed and "win rate (masked" in printed
+    for name in ("model.zip", "config.json", "curve.csv", "curve.png", "summary.json"):
+        assert (out / name).is_file(), name
+    with open(out / "curve.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert tuple(rows[0]) == CURVE_COLUMNS
+    assert [int(r["timesteps"]) for r in rows] == [0, 1024, 2048]
+    assert all(int(r["episodes"]) == 4 and 0.0 <= float(r["win_rate"]) <= 1.0 for r in rows)
+    assert 0.0 < float(rows[-1]["env_fraction"]) < 1.0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["timesteps"] == 2048 and summary["map"] == "3m"
+
+    code = main(["eval", "--model", str(out / "model.zip"), "--opponent", "all", "--episodes", "2",
+                 "--num-envs", "2"])
+    assert code == 0
+    results = json.loads((out / "eval_3m_all.json").read_text())
+    scripts = results["scripts"]
+    assert set(scripts) == set(resolve_opponents("3m", "all")[0])
+    assert all(row["episodes"] == 2 for row in scripts.values())
+    mean = sum(row["win_rate"] for row in scripts.values()) / len(scripts)  # equal weights
+    assert results["mixture"]["win_rate"] == pytest.approx(mean)
+    assert "all (mixture)" in capsys.readouterr().out
+
+
+def test_cli_rejects_bad_input():
+    with pytest.raises(SystemExit, match="unknown map"):
+        main(["train", "--map", "4m"])
+    with pytest.raises(SystemExit, match="unknown opponent"):
+        main(["train", "--opponent", "nobody"])
+    with pytest.raises(SystemExit, match="num_envs must be a positive int"):
+        main(["train", "--num-envs", "0"])
+    with pytest.raises(SystemExit, match="no model at"):
+        main(["eval", "--model", "/nonexistent/model.zip"])
+
+
+def test_maskable_ppo_learns_on_the_subprocess_env():
+    sub = make_subproc_env("3m", 2, 2, autoreset_mode="SameStep", opponent="default")
+    try:
+        venv = VecMonitor(SB3VecEnv(sub))
+        model = MaskablePPO("MlpPolicy", venv, n_steps=256, batch_size=256, n_epochs=2, seed=0, device="cpu")
+        model.learn(2048)
+        assert model.num_timesteps == 2048 and len(model.ep_info_buffer) > 0
+    finally:
+        sub.close()
