@@ -115,12 +115,15 @@ def run_duel(map_name: MapSpec | str, red: str | Script | Sequence, blue: str | 
         nonlocal next_episode
         mask = np.zeros(batch, dtype=bool)
         mask[battles] = True
-        engine.reset(mask)
-        steps[battles] = 0
-        for b in battles:
+        engine_seeds = []
+        for b in np.sort(battles):
             for side in (RED, BLUE):
                 rngs[side][b] = np.random.default_rng([int(seed), next_episode, side])
+            # The engine's weapon-delay randomness is seeded per episode too.
+            engine_seeds.append(int(np.random.default_rng([int(seed), next_episode, 2]).integers(2**63)))
             next_episode += 1
+        engine.reset(mask, seeds=np.array(engine_seeds, dtype=np.int64))
+        steps[battles] = 0
         active[battles] = True
         for side in (RED, BLUE):
             scripts[side].reset(views[side], battles, rngs[side])

@@ -12,7 +12,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from smac_hard_gym.engine import BattleEngine
+from smac_hard_gym.engine import SC2_COOLDOWN_JITTER, BattleEngine
 from smac_hard_gym.engine.state import BattleState, Commands
 from smac_hard_gym.maps import MapSpec
 
@@ -30,8 +30,9 @@ class Backend(Protocol):
     n_blue: int
     state: BattleState  # current snapshot, updated by reset() and step()
 
-    def reset(self, battles: np.ndarray | None = None) -> None:
-        """Restart the battles whose indices are in ``battles`` (all when None) at their spawn layout."""
+    def reset(self, battles: np.ndarray | None = None, seeds: np.ndarray | None = None) -> None:
+        """Restart the battles whose indices are in ``battles`` (all when None) at their spawn layout; ``seeds``
+        (one per battle) seed the simulator's own randomness where it has any."""
 
     def step(self, commands: Commands, active: np.ndarray) -> None:
         """Send commands and advance ``step_mul`` game loops in every battle with ``active[b]``."""
@@ -43,8 +44,9 @@ class Backend(Protocol):
 class NativeBackend:
     """The embedded engine behind the backend interface."""
 
-    def __init__(self, spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8) -> None:
-        self.engine = BattleEngine(spec, batch_size=batch_size, step_mul=step_mul)
+    def __init__(self, spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8,
+                 cooldown_jitter: tuple[float, float] | None = SC2_COOLDOWN_JITTER) -> None:
+        self.engine = BattleEngine(spec, batch_size=batch_size, step_mul=step_mul, cooldown_jitter=cooldown_jitter)
         self.spec = self.engine.spec
         self.batch_size = self.engine.batch_size
         self.step_mul = self.engine.step_mul
@@ -52,13 +54,15 @@ class NativeBackend:
         self.n_blue = self.engine.n_blue
         self.state = self.engine.state
 
-    def reset(self, battles: np.ndarray | None = None) -> None:
+    def reset(self, battles: np.ndarray | None = None, seeds: np.ndarray | None = None) -> None:
         if battles is None:
-            self.engine.reset()
+            self.engine.reset(seeds=seeds)
             return
+        battles = np.asarray(battles, dtype=np.int64)
+        order = np.argsort(battles)  # the engine takes seeds in battle order
         mask = np.zeros(self.batch_size, dtype=bool)
-        mask[np.asarray(battles, dtype=np.int64)] = True
-        self.engine.reset(mask)
+        mask[battles] = True
+        self.engine.reset(mask, None if seeds is None else np.asarray(seeds)[order])
 
     def step(self, commands: Commands, active: np.ndarray) -> None:
         self.engine.step(commands, active)
@@ -70,9 +74,10 @@ class NativeBackend:
 def make_backend(name: str, spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8, **options) -> Backend:
     """Build a backend by name: ``"native"`` (embedded engine) or ``"sc2"`` (StarCraft II through PySC2)."""
     if name == "native":
-        if options:
-            raise TypeError(f"backend 'native' takes no options, got {sorted(options)}")
-        return NativeBackend(spec, batch_size=batch_size, step_mul=step_mul)
+        unknown = set(options) - {"cooldown_jitter"}
+        if unknown:
+            raise TypeError(f"backend 'native' takes only the option 'cooldown_jitter', got {sorted(unknown)}")
+        return NativeBackend(spec, batch_size=batch_size, step_mul=step_mul, **options)
     if name == "sc2":
         from smac_hard_gym.sc2 import Sc2Backend  # optional extra, imported only when asked for
 

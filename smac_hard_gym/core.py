@@ -157,6 +157,7 @@ class TwoPlayerCore:
         self.last_action = (np.full((b, self.n_red), -1, dtype=np.int64),
                             np.full((b, self.n_blue), -1, dtype=np.int64))
         self.rngs: list[np.random.Generator | None] = [None] * b
+        self._sim_rngs: list[np.random.Generator | None] = [None] * b  # the simulator's draws, apart from scripts'
         self.seeds: list[int | None] = [None] * b
         self._stats = _OpponentStats()
         self._names: list[str] = [SELF_PLAY_NAME] * b  # opponent per battle, fixed for an episode
@@ -191,7 +192,10 @@ class TwoPlayerCore:
         if self._error is not None and len(np.unique(rows)) < self.batch_size:
             raise RuntimeError(f"the opponent failed ({self._error!r}); reset() every battle before going on")
         self._seed(rows, seed)
-        self.backend.reset(None if battles is None else rows)
+        # The simulator's own randomness (weapon delays) is seeded per battle too, from a stream of its own so that
+        # the scripts' draws do not depend on it.
+        engine_seeds = np.array([self._sim_rngs[b].integers(0, 2**63) for b in rows], dtype=np.int64)
+        self.backend.reset(None if battles is None else rows, seeds=engine_seeds)
         self.episode_step[rows] = 0
         self.done[rows] = False
         self.last_action[RED][rows] = -1
@@ -356,6 +360,7 @@ class TwoPlayerCore:
             for b in rows:
                 if self.rngs[b] is None:
                     self.rngs[b] = np.random.default_rng()
+                    self._sim_rngs[b] = np.random.default_rng()
             return
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + int(b) for b in rows]
@@ -369,3 +374,4 @@ class TwoPlayerCore:
                 raise ValueError(f"seeds must be non-negative, got {s} for battle {b}")
             self.seeds[b] = int(s)
             self.rngs[b] = np.random.default_rng(int(s))
+            self._sim_rngs[b] = np.random.default_rng([int(s), 1])

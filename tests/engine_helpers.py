@@ -33,7 +33,11 @@ def open_map(red: list[str], blue: list[str], name: str = "test_open"):
 
 def engine_with(red: list[str], blue: list[str], positions: dict[int, tuple[float, float]], batch: int = 1,
                 **engine_kwargs) -> BattleEngine:
-    """An engine on an open map with units at ``positions[slot]`` (red slots first, in the listed order)."""
+    """An engine on an open map with units at ``positions[slot]`` (red slots first, in the listed order).
+
+    Without SC2's random weapon delay unless asked (``cooldown_jitter=...``): fights are then computable by hand.
+    """
+    engine_kwargs.setdefault("cooldown_jitter", None)
     engine = BattleEngine(open_map(red, blue), batch_size=batch, **engine_kwargs)
     for slot, (x, y) in positions.items():
         for b in range(batch):

@@ -6,6 +6,8 @@ marauder 1.5 s, colossus 1.5 s. A weapon that fires at loop 0 fires its n-th sho
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from engine_helpers import engine_with, loops_until, shot_loop
@@ -178,3 +180,31 @@ def test_passive_learner_units_do_not_respond():
     engine.step(n_loops=32)
     assert engine.state.health[0, 1] == pytest.approx(45.0)
     assert engine.state.health[0, 0] < 45.0
+
+
+def _shot_loops(seed: int, loops: int = 600, jitter=(-1.0, 2.0)) -> list[int]:
+    """Loops at which a blue marine fires at a passive colossus (enough life for ~65 shots)."""
+    engine = engine_with(["Colossus_RL"], ["Marine"], {0: (10.0, 16.0), 1: (15.0, 16.0)}, cooldown_jitter=jitter)
+    engine.reset(seeds=[seed])
+    for slot, pos in {0: (10.0, 16.0), 1: (15.0, 16.0)}.items():
+        engine.place(0, slot, x=pos[0], y=pos[1])
+    shots = []
+    for loop in range(loops):
+        engine.step(n_loops=1)
+        if engine.state.fired_at[0, 1] == 0:
+            shots.append(loop)
+    return shots
+
+
+def test_random_weapon_delay_stays_in_sc2_bounds_and_is_seeded():
+    # SC2 delays each attack by -0.0625..+0.125 game seconds = -1..+2 loops around the 13.77-loop period.
+    shots = _shot_loops(seed=11)
+    gaps = np.diff(shots)
+    assert len(gaps) > 30
+    assert gaps.min() >= math.floor(MARINE_PERIOD - 1.0) and gaps.max() <= math.ceil(MARINE_PERIOD + 2.0)
+    assert len(set(gaps.tolist())) > 1  # not a fixed rhythm
+    # The mean period is the base period plus the mean delay (+0.5 loop), within sampling error.
+    assert np.mean(gaps) == pytest.approx(MARINE_PERIOD + 0.5, abs=0.35)
+    assert _shot_loops(seed=11) == shots
+    assert _shot_loops(seed=12) != shots
+    assert np.diff(_shot_loops(seed=11, jitter=None)).max() <= math.ceil(MARINE_PERIOD)

@@ -141,7 +141,9 @@ def test_colossus_climbs_the_cliff_a_zergling_takes_the_ramp():
 
 
 def _rollout(batch: int, steps: int, seed: int, lanes: np.ndarray | None = None):
-    engine = BattleEngine("3s5z", batch_size=batch)
+    engine = BattleEngine("3s5z", batch_size=batch)  # with SC2's random weapon delay
+    battle_seeds = 1000 + (np.arange(batch) if lanes is None else lanes)
+    engine.reset(seeds=battle_seeds)  # battle b's random stream depends on its seed only, not on the batch
     rng = np.random.default_rng(seed)
     history = []
     for _ in range(steps):

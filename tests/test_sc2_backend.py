@@ -45,8 +45,8 @@ class Float32Native:
             array = getattr(self.state, name)
             array[:] = array.astype(np.float32)
 
-    def reset(self, battles=None) -> None:
-        self.inner.reset(battles)
+    def reset(self, battles=None, seeds=None) -> None:
+        self.inner.reset(battles, seeds=seeds)
         self._round()
 
     def step(self, commands: Commands, active) -> None:
@@ -138,7 +138,7 @@ def _assert_same(sc, ref, sides, where):
 def test_3m_two_battles_script_mode_match_native(sc2path):
     kwargs = dict(mode="script", opponent="default", seed=11)
     sc = TwoPlayerCore("3m", 2, backend="sc2", backend_options={"sc2path": str(sc2path)}, **kwargs)
-    ref = TwoPlayerCore("3m", 2, **kwargs)
+    ref = TwoPlayerCore("3m", 2, backend_options={"cooldown_jitter": None}, **kwargs)
     ref.backend = Float32Native(ref.backend)
     ref.reset(seed=11)
     try:
@@ -166,7 +166,7 @@ def test_3m_two_battles_script_mode_match_native(sc2path):
 
 def _env_pair(map_name, sc2path, **kwargs):
     sc = StarCraft2Env(map_name, backend="sc2", backend_options={"sc2path": str(sc2path)}, seed=5, **kwargs)
-    ref = StarCraft2Env(map_name, seed=5, **kwargs)
+    ref = StarCraft2Env(map_name, seed=5, backend_options={"cooldown_jitter": None}, **kwargs)
     ref._core.backend = Float32Native(ref._core.backend)
     return sc, ref
 

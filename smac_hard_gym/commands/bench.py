@@ -1,10 +1,19 @@
-"""``smac-hard-gym bench engine``: engine-only throughput (env-steps/s), machine and batch size named."""
+"""``smac-hard-gym bench``: throughput benchmarks, with the machine, versions and date named.
+
+- ``bench vector``: the suite through the gymnasium vector API (native and subprocess vector envs, the engine
+  alone, ``StarCraft2Env`` on one battle, opponents, memory, profiles), optionally side by side with SMAX
+  (``--peer smax``); writes JSON, a markdown table and a PNG.
+- ``bench engine``: the battle engine alone, random commands, resets counted.
+"""
 
 from __future__ import annotations
 
 import argparse
+import shlex
+import sys
+from pathlib import Path
 
-HELP = "throughput benchmarks (engine alone)"
+HELP = "throughput benchmarks: vector envs (side by side with SMAX) or the engine alone"
 
 
 def _ints(text: str) -> list[int]:
@@ -17,8 +26,88 @@ def _ints(text: str) -> list[int]:
     return values
 
 
+def _names(text: str) -> list[str]:
+    values = [v for v in text.split(",") if v]
+    if not values:
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return values
+
+
+def _map_sizes(text: str) -> list[tuple[str, int]]:
+    """``3m:4096,8m:256`` -> [("3m", 4096), ("8m", 256)]; an empty string gives none."""
+    out = []
+    for item in (v for v in text.split(",") if v):
+        name, _, size = item.partition(":")
+        if not name or not size.isdigit() or int(size) < 1:
+            raise argparse.ArgumentTypeError(f"expected MAP:N[,MAP:N...] with N a positive int, got {text!r}")
+        out.append((name, int(size)))
+    return out
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
+def _count(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive int, got {text!r}")
+    return int(text)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from smac_hard_gym.bench import (
+        DEFAULT_ENVS_PER_WORKER,
+        DEFAULT_MAPS,
+        DEFAULT_NUM_ENVS,
+        DEFAULT_SUBPROC_MAPS,
+        DEFAULT_WORKERS,
+        OPPONENTS,
+        SECTIONS,
+    )
+
+    def csv(values: tuple) -> str:
+        return ",".join(map(str, values))
+
     sub = parser.add_subparsers(dest="target", metavar="TARGET", required=True)
+    vec = sub.add_parser("vector", help="env-steps/s through the gymnasium vector API (and SMAX with --peer smax)",
+                         description="Env-steps/s through the gymnasium vector API with random legal actions, "
+                                     "resets included; medians of repeats, compile time apart.")
+    vec.add_argument("--maps", type=_names, default=list(DEFAULT_MAPS), help=f"default {csv(DEFAULT_MAPS)}")
+    vec.add_argument("--num-envs", type=_ints, default=list(DEFAULT_NUM_ENVS),
+                     help=f"battles per native vector env (default {csv(DEFAULT_NUM_ENVS)})")
+    vec.add_argument("--opponent", choices=OPPONENTS, default="base",
+                     help="opponent of the main grid: SMAC's base, or the map's default SMAC-HARD mixture")
+    vec.add_argument("--workers", type=_ints, default=list(DEFAULT_WORKERS),
+                     help=f"subprocess workers (default {csv(DEFAULT_WORKERS)})")
+    vec.add_argument("--envs-per-worker", type=_ints, default=list(DEFAULT_ENVS_PER_WORKER),
+                     help=f"battles per subprocess worker, K (default {csv(DEFAULT_ENVS_PER_WORKER)})")
+    vec.add_argument("--subproc-maps", type=_names, default=list(DEFAULT_SUBPROC_MAPS),
+                     help=f"maps of the subprocess runs (default {csv(DEFAULT_SUBPROC_MAPS)})")
+    vec.add_argument("--opponent-num-envs", type=_count, default=256,
+                     help="battles of the base-vs-default opponent comparison (default 256)")
+    vec.add_argument("--memory", type=_map_sizes, default=[("3m", 4096)],
+                     help="MAP:N configurations whose peak RSS is read in a fresh process (default 3m:4096)")
+    vec.add_argument("--profile", type=_map_sizes, default=[],
+                     help="MAP:N configurations to profile (default: each SMAX map at its best native batch)")
+    vec.add_argument("--sections", type=_names, default=list(SECTIONS), help=f"subset of {csv(SECTIONS)}")
+    vec.add_argument("--seconds", type=_positive, default=1.0, help="seconds per timed window (default 1)")
+    vec.add_argument("--repeats", type=_count, default=3, help="timed windows; the median is reported (default 3)")
+    vec.add_argument("--seed", type=int, default=0)
+    vec.add_argument("--peer", choices=["smax"], default=None,
+                     help="also run SMAX (JaxMARL) on the maps it has, in the same run, through its own Python")
+    vec.add_argument("--peer-python", default=None, metavar="PATH",
+                     help="the Python with jaxmarl (default $SMAX_PYTHON, else smax-venv/ beside the repository)")
+    vec.add_argument("--json", default=None, metavar="PATH",
+                     help="write the results as JSON here, with the markdown table (.md) and the plot (.png) beside")
+    vec.add_argument("--markdown", default=None, metavar="PATH", help="markdown table path (default: beside --json)")
+    vec.add_argument("--plot", default=None, metavar="PATH", help="PNG path (default: beside --json)")
+
     eng = sub.add_parser("engine", help="the battle engine alone, random commands, resets counted")
     eng.add_argument("--map", default="3m", help="map name, or comma-separated names (default 3m)")
     eng.add_argument("--batch", type=_ints, default=[4096], help="battles per batch, comma-separated (default 4096)")
@@ -28,6 +117,49 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.target == "engine":
+        return _run_engine(args)
+    return _run_vector(args)
+
+
+def _run_vector(args: argparse.Namespace) -> int:
+    import json
+
+    from smac_hard_gym.bench import SuiteConfig, markdown_report, plot_report, run_suite
+
+    config = SuiteConfig(maps=args.maps, num_envs=args.num_envs, opponent=args.opponent, workers=args.workers,
+                         envs_per_worker=args.envs_per_worker, subproc_maps=args.subproc_maps,
+                         opponent_num_envs=args.opponent_num_envs, memory=args.memory, profile=args.profile,
+                         sections=args.sections, seconds=args.seconds, repeats=args.repeats, seed=args.seed,
+                         peer=args.peer, peer_python=args.peer_python)
+    print("config: " + ", ".join(f"{k}={v}" for k, v in vars(args).items() if k not in ("command", "target")))
+    try:
+        doc = run_suite(config)
+    except (ValueError, RuntimeError, KeyError) as err:
+        print(f"smac-hard-gym bench vector: {err}", file=sys.stderr)
+        return 2
+    command = "smac-hard-gym " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
+    doc["command"] = command
+    text = markdown_report(doc, command)
+    print()
+    print(text)
+    markdown = args.markdown or (str(Path(args.json).with_suffix(".md")) if args.json else None)
+    plot = args.plot or (str(Path(args.json).with_suffix(".png")) if args.json else None)
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(doc, indent=1))
+        print(f"wrote {args.json}")
+    if markdown:
+        Path(markdown).parent.mkdir(parents=True, exist_ok=True)
+        Path(markdown).write_text(text)
+        print(f"wrote {markdown}")
+    if plot:
+        print(f"wrote {plot}" if plot_report(doc, plot) else "no plot: matplotlib is not installed (pip install "
+              "matplotlib)")
+    return 0
+
+
+def _run_engine(args: argparse.Namespace) -> int:
     from smac_hard_gym.bench import bench_engine, machine_info, write_json
     from smac_hard_gym.maps import load_map
 
@@ -42,8 +174,8 @@ def run(args: argparse.Namespace) -> int:
         for batch in args.batch:
             r = bench_engine(name, batch, steps=args.steps, repeats=args.repeats)
             results.append(r)
-            print(f"{name:<18}{batch:>7}{r.steps_per_second:>14,.0f}{r.startup_seconds:>11.1f}"
-                  f"{r.bytes_per_battle:>14,.0f}")
+            print(f"{name:<18}{batch:>7}{r.steps_per_second:>14,.0f}{r.setup_seconds:>11.1f}"
+                  f"{r.extra['state_bytes_per_battle']:>14,.0f}")
     if args.json:
         write_json(args.json, "engine", results)
         print(f"wrote {args.json}")

@@ -42,6 +42,18 @@ from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.units import STATS, UNITS
 
 PARALLEL_MIN_BATCH = 16  # below this many battles a step runs on the calling thread
+# SC2 delays every attack by a random -0.0625 to +0.125 game seconds (weapon data RandomDelayMin/Max; SMAX draws the
+# same range): -1 to +2 game loops.
+SC2_COOLDOWN_JITTER = (-1.0, 2.0)
+_MASK64 = (1 << 64) - 1
+
+
+def _splitmix64(value: int) -> int:
+    """A well-mixed nonzero 64-bit state from any integer (seeds the battles' xorshift streams)."""
+    z = (value + 0x9E3779B97F4A7C15) & _MASK64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return (z ^ (z >> 31)) or 1
 
 __all__ = [
     "BattleEngine", "BattleState", "Commands", "Terrain", "Layout", "RED", "BLUE", "NO_UNIT",
@@ -57,7 +69,8 @@ class BattleEngine:
     Normal-speed second). Everything is deterministic: no random draw happens inside the engine.
     """
 
-    def __init__(self, map_spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8) -> None:
+    def __init__(self, map_spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8,
+                 cooldown_jitter: tuple[float, float] | None = SC2_COOLDOWN_JITTER, seed: int = 0) -> None:
         if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
             raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
         if not isinstance(step_mul, (int, np.integer)) or step_mul < 1:
@@ -74,6 +87,12 @@ class BattleEngine:
         self.state: BattleState = allocate_state(self.batch_size, self.n_units)
         self.commands = Commands.empty(self.batch_size, self.n_units)
         self._all_active = np.ones(self.batch_size, dtype=np.bool_)
+        lo, hi = (0.0, 0.0) if cooldown_jitter is None else (float(cooldown_jitter[0]), float(cooldown_jitter[1]))
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi and lo > -8):
+            raise ValueError(f"cooldown_jitter must be (low, high) game loops with -8 < low <= high, or None; "
+                             f"got {cooldown_jitter!r}")
+        self.cooldown_jitter = np.array([lo, hi], dtype=np.float64)
+        self.state.rng[:] = [_splitmix64(int(seed) * self.batch_size + b) for b in range(self.batch_size)]
         self.reset()
 
     def __repr__(self) -> str:
@@ -87,10 +106,19 @@ class BattleEngine:
     def blue_slots(self) -> slice:
         return slice(self.n_red, self.n_units)
 
-    def reset(self, mask: np.ndarray | None = None) -> None:
-        """Put battles back at their spawn layout (all battles, or those where ``mask`` is True)."""
+    def reset(self, mask: np.ndarray | None = None, seeds: np.ndarray | None = None) -> None:
+        """Put battles back at their spawn layout (all battles, or those where ``mask`` is True).
+
+        ``seeds`` (one int per reset battle) restarts their random streams; without it each battle's stream goes on.
+        """
         rows = slice(None) if mask is None else np.flatnonzero(np.asarray(mask, dtype=bool))
         st, lay = self.state, self.layout
+        if seeds is not None:
+            idx = np.arange(self.batch_size)[rows]
+            seeds = np.atleast_1d(np.asarray(seeds))
+            if seeds.shape != idx.shape:
+                raise ValueError(f"seeds must give one int per reset battle ({len(idx)}), got shape {seeds.shape}")
+            st.rng[idx] = [_splitmix64(int(s)) for s in seeds]
         st.utype[rows] = lay.utype
         st.side[rows] = lay.side
         st.alive[rows] = True
@@ -119,7 +147,7 @@ class BattleEngine:
         t = self.terrain
         kernel = step_batch if self.batch_size >= PARALLEL_MIN_BATCH else step_batch_serial
         kernel(self.state, cmd.kind, cmd.target, cmd.x, cmd.y, STATS, t.walk, t.next_hop, t.los, t.open_field,
-                   self.step_mul if n_loops is None else int(n_loops), act)
+               self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter)
 
     def alive_counts(self) -> tuple[np.ndarray, np.ndarray]:
         """Alive units per battle: (red, blue), each shaped (B,)."""

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit, prange
 
 from smac_hard_gym.engine.state import (
@@ -494,8 +495,19 @@ def _heal(i, j, utype, health, energy, fired_at, stats):
 
 
 @inline
+def _uniform(rng):
+    """Next number in [0, 1) of a battle's xorshift64* stream (``rng`` is its one-element state)."""
+    z = rng[0]
+    z ^= z >> np.uint64(12)
+    z ^= z << np.uint64(25)
+    z ^= z >> np.uint64(27)
+    rng[0] = z
+    return float((z * np.uint64(2685821657736338717)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@inline
 def _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
-             fired_at, burst, stats):
+             fired_at, burst, stats, rng, jitter_lo, jitter_hi):
     for i in range(alive0.shape[0]):
         if not alive0[i]:
             continue
@@ -518,6 +530,8 @@ def _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield
                 for _ in range(int(stats[t, _HITS])):
                     _damage(j, amount, i, utype, health, shield, shield_wait, attacker, stats)
             cooldown[i] += stats[t, _COOLDOWN]
+            if jitter_hi > jitter_lo:  # SC2 adds a random delay to every attack
+                cooldown[i] += jitter_lo + (jitter_hi - jitter_lo) * _uniform(rng)
             fired_at[i] = j
 
 
@@ -541,8 +555,14 @@ def _deaths(alive, health, shield, order, target):
 
 
 @njit(cache=True, error_model="numpy")
-def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops):
-    """Apply battle b's commands, then run ``n_loops`` game loops on it."""
+def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, jitter):
+    """Apply battle b's commands, then run ``n_loops`` game loops on it.
+
+    ``jitter`` = (low, high): each attack's cooldown gets a uniform random delay in [low, high) loops; (0, 0) for
+    none.
+    """
+    rng = st.rng[b:b + 1]
+    jitter_lo, jitter_hi = jitter[0], jitter[1]
     utype, side, alive, alive0 = st.utype[b], st.side[b], st.alive[b], st.alive_at_loop[b]
     x, y, health, shield, energy = st.x[b], st.y[b], st.health[b], st.shield[b], st.energy[b]
     cooldown, shield_wait = st.cooldown[b], st.shield_wait[b]
@@ -556,7 +576,7 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, lo
         _movement(utype, alive, x, y, order, order_x, order_y, target, stats, walk, next_hop, los, open_field)
         _separation(utype, alive, x, y, order, stats, walk)
         _attacks(utype, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
-                 fired_at, burst, stats)
+                 fired_at, burst, stats, rng, jitter_lo, jitter_hi)
         _deaths(alive, health, shield, order, target)
     # Crowds chasing one target re-compress a little every loop; settle them before anyone observes the state.
     for _ in range(_SETTLE_PASSES):
@@ -566,16 +586,19 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, lo
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def step_batch(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, active):
+def step_batch(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, active, jitter):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``."""
     for b in prange(st.alive.shape[0]):
         if active[b]:
-            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops)
+            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops,
+                        jitter)
 
 
 @njit(cache=True, error_model="numpy")
-def step_batch_serial(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, active):
+def step_batch_serial(st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops, active,
+                      jitter):
     """``step_batch`` on the calling thread: small batches would pay more to wake the thread pool than they gain."""
     for b in range(st.alive.shape[0]):
         if active[b]:
-            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops)
+            step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, stats, walk, next_hop, los, open_field, n_loops,
+                        jitter)

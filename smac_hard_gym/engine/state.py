@@ -46,6 +46,7 @@ class BattleState(NamedTuple):
     burst: np.ndarray  # bool: a baneling that exploded during the latest env step
     alive_at_loop: np.ndarray  # bool scratch: alive when the current game loop began (simultaneous fire)
     loop: np.ndarray  # int64 (B,): game loops since the battle's reset
+    rng: np.ndarray  # uint64 (B,): the battle's random stream (weapon cooldown jitter), seeded at reset
 
 
 class Commands(NamedTuple):
@@ -85,7 +86,7 @@ def allocate_state(batch: int, n_units: int) -> BattleState:
     arrays = {name: np.zeros((batch, n_units), dtype=dt) for name, dt in _FIELD_DTYPES.items()}
     for name in ("order_target", "target", "attacker", "fired_at"):
         arrays[name][:] = NO_UNIT
-    return BattleState(**arrays, loop=np.zeros(batch, dtype=np.int64))
+    return BattleState(**arrays, loop=np.zeros(batch, dtype=np.int64), rng=np.zeros(batch, dtype=np.uint64))
 
 
 def copy_battle(src: BattleState, src_index: int, dst: BattleState, dst_index: int) -> None:

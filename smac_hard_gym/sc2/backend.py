@@ -111,8 +111,11 @@ class Sc2Backend:
     # -----------------------------------------------------------------------------------------------------------
     # Backend interface.
 
-    def reset(self, battles: np.ndarray | Sequence[int] | None = None) -> None:
-        """Start new episodes in ``battles`` (all when None): start games where none runs, else kill and respawn."""
+    def reset(self, battles: np.ndarray | Sequence[int] | None = None, seeds: np.ndarray | None = None) -> None:
+        """Start new episodes in ``battles`` (all when None): start games where none runs, else kill and respawn.
+
+        ``seeds`` is accepted for the backend interface and ignored: the game draws its own randomness from the
+        game seed (``seed`` option)."""
         self._check_open()
         rows = self._rows(battles)
         self._start([b for b in rows if self._games[b] is None])

@@ -59,7 +59,8 @@ class TestGame:
 
     def __init__(self, spec: MapSpec, custom_id_base: int = DEFAULT_CUSTOM_ID_BASE) -> None:
         self.spec = spec
-        self.engine = BattleEngine(spec, batch_size=1, step_mul=1)
+        # Deterministic stand-in: no weapon-delay randomness, so a native run without it is an exact reference.
+        self.engine = BattleEngine(spec, batch_size=1, step_mul=1, cooldown_jitter=None)
         layout = self.engine.layout
         self.n_units = self.engine.n_units
         self.owner = np.where(layout.side == RED, 1, 2).astype(np.int32)
