@@ -76,3 +76,17 @@ def test_scripts_command_lists_pools(capsys):
     assert main(["scripts", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert len(doc["default"]) == 23 and doc["scripts"]["line_front"]["maps"][0] == "3m"
+
+
+def test_duel_records_episodes_that_replay(tmp_path):
+    from smac_hard_gym.cli import main
+    from smac_hard_gym.render.recorder import load_episode
+
+    assert main(["duel", "--map", "3m", "--red", "nearest", "--blue", "base", "--episodes", "2", "--no-progress",
+                 "--record", str(tmp_path), "--record-episodes", "2"]) == 0
+    files = sorted(tmp_path.glob("*.npz"))
+    assert [f.name for f in files] == ["duel_3m_nearest_vs_base_0.npz", "duel_3m_nearest_vs_base_1.npz"]
+    episode = load_episode(files[0])
+    assert episode.metadata["red"] == "nearest" and episode.metadata["blue"] == "base"
+    assert main(["replay", str(files[0]), "--out", str(tmp_path / "e.gif")]) == 0
+    assert (tmp_path / "e.gif").stat().st_size > 0

@@ -21,6 +21,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--blue-probs", type=float, nargs="+", default=None, help="mixture weights for --blue")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the result as JSON")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--record", default=None, metavar="DIR",
+                        help="also record episodes to DIR as .npz files (see `smac-hard-gym replay`)")
+    parser.add_argument("--record-episodes", type=int, default=4, metavar="N",
+                        help="how many episodes --record saves (default 4; episode e is seeded seed + e)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,4 +49,28 @@ def run(args: argparse.Namespace) -> int:
         with open(args.json, "w") as fh:
             json.dump(result.to_dict(), fh, indent=1)
         print(f"wrote {args.json}")
+    if args.record:
+        _record(args)
     return 0
+
+
+def _record(args: argparse.Namespace) -> None:
+    """Replay ``--record-episodes`` episodes of the same pairing one by one and save each as a recording."""
+    from pathlib import Path
+
+    from smac_hard_gym.maps import load_map
+    from smac_hard_gym.opponents import make_opponent
+    from smac_hard_gym.render.recorder import record_engine_episode
+
+    if args.record_episodes < 1:
+        raise SystemExit(f"--record-episodes must be >= 1, got {args.record_episodes}")
+    folder = Path(args.record)
+    folder.mkdir(parents=True, exist_ok=True)
+    spec = load_map(args.map)
+    for e in range(args.record_episodes):
+        red = make_opponent(spec, args.red, args.red_probs)
+        blue = make_opponent(spec, args.blue, args.blue_probs)
+        recording = record_engine_episode(args.map, red, blue, seed=args.seed + e)
+        path = folder / f"duel_{args.map}_{recording.metadata['red']}_vs_{recording.metadata['blue']}_{e}.npz"
+        recording.save(path)
+        print(f"recorded {path} (winner: {recording.metadata.get('winner')})")
