@@ -382,3 +382,27 @@ def test_starcraft2env_reports_a_restarted_game_and_saves_replays(sc2path, tmp_p
         assert [p.suffix for p in (tmp_path / "replays").iterdir()] == [".SC2Replay"]
     finally:
         env.close()
+
+
+def test_subprocess_vector_env_of_two_workers_on_the_sc2_backend(sc2path):
+    # The design card's shape: worker processes, each running StarCraft II games of the two-player core.
+    from smac_hard_gym.subproc import make_subproc_env
+
+    envs = make_subproc_env("3m", num_workers=2, envs_per_worker=1, autoreset_mode="SameStep", timeout=120,
+                            backend="sc2", backend_options={"sc2path": str(sc2path)}, opponent="base")
+    try:
+        obs, infos = envs.reset(seed=3)
+        assert obs.shape == (2, 3 * 30)
+        rng = np.random.default_rng(0)
+        finished = 0
+        for _ in range(40):
+            masks = envs.action_masks().reshape(2, 3, -1)
+            actions = np.array([[rng.choice(np.flatnonzero(m)) for m in env_masks] for env_masks in masks])
+            obs, reward, terminated, truncated, infos = envs.step(actions)
+            assert np.isfinite(reward).all() and obs.shape == (2, 90)
+            finished += int((terminated | truncated).sum())
+        assert finished >= 1  # random play on 3m against base ends within 40 steps
+        worker_pids = [w.process.pid for w in envs._workers]
+    finally:
+        envs.close()
+    assert all(_state(p) is None for p in worker_pids)
