@@ -244,9 +244,11 @@ class SMACHardEnv(gym.Env):
                              f"({action!r})")
         acts, replaced = self.view.resolve_actions(acts[None], self.invalid_action, ~self.core.done)
         result = self.core.step(acts)
-        terminated = bool(result.terminated[0])
+        # A game the sc2 backend lost and restarted ended without a result: truncated, flagged in info.
+        restarted = bool(result.restarted[0])
+        terminated = bool(result.terminated[0]) and not restarted
         # Truncated at the limit even when the battle also ended on that step, as gymnasium's TimeLimit says.
-        truncated = bool(self.core.episode_step[0] >= self.episode_limit)
+        truncated = bool(self.core.episode_step[0] >= self.episode_limit) or restarted
         self._needs_reset = terminated or truncated
         info: dict[str, Any] = {
             "battle_won": bool(result.battle_won[0, RED]), "dead_allies": int(result.dead_red[0]),
@@ -255,6 +257,8 @@ class SMACHardEnv(gym.Env):
         }
         if self.invalid_action == "noop":
             info["invalid_actions"] = int(replaced[0])
+        if restarted:
+            info["restarted"] = True
         return self._observation(), float(result.reward[0, RED]), terminated, truncated, info
 
     def action_masks(self) -> np.ndarray:

@@ -138,9 +138,10 @@ class NativeVectorEnv(VectorEnv):
         core = self.core
         acts, replaced = self.view.resolve_actions(acts, self.invalid_action, ~core.done)
         result = core.step(acts)
-        terminated = result.terminated.copy()
+        # A game the sc2 backend lost and restarted ended without a result: truncated, flagged in infos.
+        terminated = result.terminated & ~result.restarted
         # Truncated at the limit even when the battle also ended on that step, as gymnasium's TimeLimit says.
-        truncated = result.stepped & (core.episode_step >= self.episode_limit)
+        truncated = result.stepped & ((core.episode_step >= self.episode_limit) | result.restarted)
         core.done |= truncated  # freeze the battle until its reset, as the core does at the map's own limit
         ended = terminated | truncated
         rewards = result.reward[:, RED].astype(np.float64)
@@ -227,6 +228,8 @@ class NativeVectorEnv(VectorEnv):
             values["dead_enemies"] = (np.asarray(result.dead_blue, dtype=np.int64), stepped)
             if self.invalid_action == "noop":
                 values["invalid_actions"] = (replaced, stepped)
+            if result.restarted.any():
+                values["restarted"] = (result.restarted.copy(), stepped)
         shown = stepped | resets
         if shown.any():
             values["opponent"] = (np.asarray(self.core.opponent_names(), dtype=object), shown)

@@ -406,3 +406,23 @@ def test_subprocess_vector_env_of_two_workers_on_the_sc2_backend(sc2path):
     finally:
         envs.close()
     assert all(_state(p) is None for p in worker_pids)
+
+
+def test_gymnasium_env_reports_a_restarted_game_as_truncated(sc2path):
+    import gymnasium as gym
+
+    import smac_hard_gym  # noqa: F401  (registers the ids)
+
+    env = gym.make("SMACHard-3m-v0", backend="sc2", backend_options={"sc2path": str(sc2path)}, opponent="base")
+    try:
+        obs, info = env.reset(seed=0)
+        stop = np.ones(3, dtype=np.int64)
+        env.step(stop)
+        os.kill(env.unwrapped.core.backend.pids[0], signal.SIGKILL)
+        obs, reward, terminated, truncated, info = env.step(stop)
+        assert (terminated, truncated, reward) == (False, True, 0.0) and info["restarted"] is True
+        obs, info = env.reset()
+        obs, reward, terminated, truncated, info = env.step(stop)
+        assert "restarted" not in info
+    finally:
+        env.close()
