@@ -44,7 +44,7 @@ __all__ = [
     "DEFAULT_MAPS", "DEFAULT_NUM_ENVS", "SECTIONS", "SMAX_MAPS", "Measurement", "RandomLegalPolicy", "SuiteConfig",
     "CpuMeter", "bench_engine", "bench_native", "bench_starcraft2", "bench_subproc", "cold_start", "cpu_probe",
     "machine_info", "markdown_report", "must_reach", "plot_report", "profile_native", "profile_starcraft2",
-    "run_smax", "run_suite", "smax_python", "timed_repeats", "write_json",
+    "run_smax", "run_suite", "smax_python", "source_version", "timed_repeats", "write_json",
 ]
 
 DEFAULT_MAPS = ("3m", "8m", "2s3z", "MMM2", "27m_vs_30m", "corridor", "2c_vs_64zg")
@@ -98,6 +98,32 @@ def machine_info() -> dict[str, Any]:
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
     }
+
+
+def source_version() -> dict[str, Any]:
+    """The code measured: the git commit (when run from a checkout), whether tracked files differ from it, and a
+    digest of every source file of the simulator and env layers (so a run can tell if they changed under it)."""
+    import hashlib
+
+    digest, files = hashlib.sha1(), {}
+    for folder in ("smac_hard_gym", "maps", "opponents"):
+        for path in sorted((REPO_ROOT / folder).rglob("*.py")):
+            if "commands" not in path.parts and path.name != "bench.py":
+                data = path.read_bytes()
+                digest.update(data)
+                files[str(path.relative_to(REPO_ROOT))] = hashlib.sha1(data).hexdigest()[:12]
+    out: dict[str, Any] = {"source_digest": digest.hexdigest()[:12], "files": files}
+    try:
+        def git(*args: str) -> str:
+            return subprocess.run(["git", "-C", str(REPO_ROOT), *args], capture_output=True, text=True,
+                                  timeout=10, check=True).stdout
+
+        out["git_commit"] = git("rev-parse", "--short", "HEAD").strip()
+        status = git("status", "--porcelain", "--untracked-files=no").splitlines()
+        out["git_modified"] = [line[3:] for line in status if line.strip()]
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return out
 
 
 def _memory_gib() -> float | None:
@@ -733,6 +759,7 @@ class SuiteConfig:
     seed: int = 0
     peer: str | None = None
     peer_python: str | None = None
+    numba_threads: int | None = None  # threads of the engine's parallel kernels in this process (None: numba's)
 
 
 def _check_config(config: SuiteConfig) -> None:
@@ -747,6 +774,12 @@ def _check_config(config: SuiteConfig) -> None:
         raise ValueError(f"opponent must be one of {OPPONENTS}, got {config.opponent!r}")
     if config.peer not in (None, "smax"):
         raise ValueError(f"peer must be 'smax' or None, got {config.peer!r}")
+    if config.numba_threads is not None:
+        import numba
+
+        if not 1 <= config.numba_threads <= numba.config.NUMBA_NUM_THREADS:
+            raise ValueError(f"numba_threads must lie in 1..{numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS), "
+                             f"got {config.numba_threads!r}")
     if not config.seconds > 0 or config.repeats < 1:
         raise ValueError(f"seconds must be > 0 and repeats >= 1, got {config.seconds!r} and {config.repeats!r}")
 
@@ -768,6 +801,12 @@ def run_suite(config: SuiteConfig, log: Callable[[str], None] = print) -> dict[s
                            "results": results, "cpu_probes": probes, "memory": [], "profiles": [], "peer": None}
     timing = {"seconds": config.seconds, "repeats": config.repeats, "seed": config.seed}
     started = time.perf_counter()
+    doc["started"] = time.strftime("%Y-%m-%d %H:%M:%S %Z")
+    doc["source"] = source_version()
+    if config.numba_threads is not None:
+        import numba
+
+        numba.set_num_threads(config.numba_threads)
     doc["load_average_start"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
 
     def probe(label: str) -> None:
@@ -860,6 +899,12 @@ def run_suite(config: SuiteConfig, log: Callable[[str], None] = print) -> dict[s
             log("  StarCraft2Env 3m: " + _profile_line(doc["profiles"][-1]))
     probe("end")
     doc["machine"] = machine_info()  # after the engine ran here, so numba's threading layer is known
+    now, then = source_version()["files"], doc["source"]["files"]
+    changed = sorted(f for f in now.keys() | then.keys() if now.get(f) != then.get(f))
+    if changed:
+        doc["warnings"] = [f"source files changed during the run ({', '.join(changed)}): this process kept the "
+                           "versions it had imported; processes started later (workers, probes) got the new ones"]
+        log("WARNING: " + doc["warnings"][0])
     doc["elapsed_seconds"] = time.perf_counter() - started
     doc["results"] = [asdict(r) for r in results]
     doc["must_reach"] = must_reach(doc)
@@ -889,15 +934,19 @@ def must_reach(doc: dict[str, Any]) -> list[dict[str, Any]]:
     for name in ("3m", "8m", "27m_vs_30m"):
         ours, smax = _best_row(doc, "native", map=name), _best_row(doc, "smax", map=name, mode="scan")
         if ours and smax:
+            a, b = _per_cpu(ours), _per_cpu(smax)
+            per_cpu = f"; per CPU-second {a / b:.2f}×" if a and b else ""
             targets.append(_target(f"native best batch >= 5x SMAX best batch, {name}", ours["steps_per_second"]
                                    / smax["steps_per_second"], 5.0, f"ours N={ours['num_envs']} "
                                    f"{ours['steps_per_second']:,.0f} vs SMAX N={smax['num_envs']} "
-                                   f"{smax['steps_per_second']:,.0f} steps/s"))
+                                   f"{smax['steps_per_second']:,.0f} steps/s{per_cpu}"))
     sc2, loop = _best_row(doc, "starcraft2", map="3m", opponent="base"), _best_row(doc, "smax", map="3m", mode="loop")
     if sc2 and loop:
+        a, b = _per_cpu(sc2), _per_cpu(loop)
+        per_cpu = f"; per CPU-second {a / b:.2f}×" if a and b else ""
         targets.append(_target("StarCraft2Env 3m B=1 >= 2x SMAX single-env Python loop", sc2["steps_per_second"]
                                / loop["steps_per_second"], 2.0, f"{sc2['steps_per_second']:,.0f} vs "
-                               f"{loop['steps_per_second']:,.0f} steps/s"))
+                               f"{loop['steps_per_second']:,.0f} steps/s{per_cpu}"))
     scaling = [s for s in _subproc_scaling(doc) if "ratio_2" in s]
     if scaling:
         # "Where the environment dominates": the configuration whose one-worker step takes longest.
@@ -906,8 +955,8 @@ def must_reach(doc: dict[str, Any]) -> list[dict[str, Any]]:
                 if r["extra"]["envs_per_worker"] == heavy["k"]}
         targets.append(_target("subprocess 2 workers >= 1.7x 1 worker (env-dominated)", heavy["ratio_2"], 1.7,
                                f"{heavy['map']} K={heavy['k']}: {heavy['sps_1']:,.0f} -> {heavy['sps_2']:,.0f} "
-                               f"steps/s; other processes held {_others(rows.get(1))} / {_others(rows.get(2))} "
-                               "cores meanwhile"))
+                               f"steps/s; cores lost to others meanwhile {_others(rows.get(1))} / "
+                               f"{_others(rows.get(2))}"))
     for probe in doc.get("memory", []):
         if probe["map"] == "3m" and probe["num_envs"] == 4096:
             traced = next((r["peak_bytes_per_env"] for r in _rows(doc, "native", map="3m", num_envs=4096)
@@ -955,10 +1004,15 @@ def _spread(row: dict[str, Any]) -> str:
     return f" ({_fmt(min(runs))}–{_fmt(max(runs))})"
 
 
+def _lost(cpu: dict[str, float]) -> float:
+    """Cores this benchmark could not have: those other processes used plus those the hypervisor stole."""
+    return cpu.get("other_cores", 0.0) + cpu.get("stolen_cores", 0.0)
+
+
 def _others(row: dict[str, Any] | None) -> str:
-    """Cores other processes used while ``row`` was timed (its CpuMeter reading), or a dash."""
+    """Cores lost to other processes and the hypervisor while ``row`` was timed (its CpuMeter reading), or a dash."""
     cpu = (row or {}).get("extra", {}).get("cpu") or {}
-    return f"{cpu['other_cores']:.1f}" if "other_cores" in cpu else "–"
+    return f"{_lost(cpu):.1f}" if "other_cores" in cpu else "–"
 
 
 def markdown_report(doc: dict[str, Any], command: str = "") -> str:
@@ -968,7 +1022,14 @@ def markdown_report(doc: dict[str, Any], command: str = "") -> str:
     out.append(f"Machine: {m['cpu']}, {m['cores']} cores, {m.get('memory_gib')} GiB; Python {m['python']}, "
                f"smac-hard-gym {m.get('smac_hard_gym')}, numpy {m['numpy']}, numba {m['numba']} "
                f"({m['numba_threads']} threads, {m.get('numba_threading_layer')}), gymnasium {m.get('gymnasium')}. "
-               f"Date: {m['date']}.")
+               + (f"Run: {doc['started']} to {m['date']}." if doc.get("started") else f"Run ended {m['date']}."))
+    src = doc.get("source") or {}
+    if src:
+        modified = src.get("git_modified")
+        out.append(f"Code: commit {src.get('git_commit', 'unknown')}" + (f" with {len(modified)} modified files"
+                   if modified else "") + f", simulator sources digest {src['source_digest']}.")
+    for warning in doc.get("warnings", []):
+        out.append(f"**Warning: {warning}.**")
     peer = doc.get("peer") or {}
     if peer.get("machine"):
         pm = peer["machine"]
@@ -997,17 +1058,20 @@ def _noise_lines(doc: dict[str, Any]) -> list[str]:
     if not probes:
         return []
     load = doc.get("load_average_start")
-    others = [r["extra"]["cpu"]["other_cores"] for r in doc["results"] if "other_cores" in r.get("extra", {}).get(
-        "cpu", {})]
-    steal = [r["extra"]["cpu"].get("stolen_cores", 0.0) for r in doc["results"] if "cpu" in r.get("extra", {})]
-    lines = ["", f"Noise: a fixed single-thread CPU probe took {min(probes):.2f}–{max(probes):.2f} s across the run "
-             f"(median {np.median(probes):.2f} s; the spread is how much other processes slowed this one); "
-             f"load average at start {', '.join(f'{x:.1f}' for x in load) if load else 'n/a'}. "
-             f"Whole run: {doc.get('elapsed_seconds', 0) / 60:.1f} min."]
+    readings = [r["extra"]["cpu"] for r in doc["results"] if "other_cores" in r.get("extra", {}).get("cpu", {})]
+    others = [c["other_cores"] for c in readings]
+    steal = [c.get("stolen_cores", 0.0) for c in readings]
+    lost = [_lost(c) for c in readings]
+    lines = ["", f"Noise: load average at start {', '.join(f'{x:.1f}' for x in load) if load else 'n/a'}; "
+             f"whole run {doc.get('elapsed_seconds', 0) / 60:.1f} min; a single-thread CPU probe took "
+             f"{min(probes):.2f}–{max(probes):.2f} s (it finds a free core even when the other one is taken, so it "
+             "shows slowdowns of a core, not a lost core)."]
     if others:
         lines[-1] += (f" While figures were timed, other processes used {np.median(others):.1f} cores (median; "
-                      f"max {max(others):.1f}) of the {doc['machine']['cores']}, and the hypervisor took "
-                      f"{max(steal, default=0.0):.2f} at most (the \"others\" columns give it per figure).")
+                      f"max {max(others):.1f}) of the {doc['machine']['cores']} and the hypervisor stole up to "
+                      f"{max(steal, default=0.0):.2f}; {sum(x >= 0.5 for x in lost)} of {len(lost)} figures lost "
+                      "half a core or more. The \"cores lost\" columns give, per figure (ours / SMAX's), the cores "
+                      "other processes used plus those the hypervisor stole while it was timed.")
     return lines
 
 
@@ -1021,7 +1085,7 @@ def _native_table(doc: dict[str, Any]) -> list[str]:
     if have_smax:
         head += " SMAX (jit+scan) | ours / SMAX |"
         rule += "---:|---:|"
-    head += " others' cores |"
+    head += " cores lost |"
     rule += "---:|"
     out = ["", f"## Native vector env through the gymnasium API (opponent `{doc['config']['opponent']}`)", "",
            head, rule]
@@ -1037,15 +1101,25 @@ def _native_table(doc: dict[str, Any]) -> list[str]:
         line += f" {_others(r)}{' / ' + _others(s) if s else ''} |"
         out.append(line)
     if have_smax:
-        out += ["", "Best batch per map (the must-reach comparison):", "", "| map | ours (N) | SMAX (N) | ratio |",
-                "|---|---:|---:|---:|"]
+        out += ["", "Best batch per map (the must-reach comparison), also per CPU-second: steps/s divided by the cores "
+                "each process actually got while timed (on a shared machine the two rarely get the same):", "",
+                "| map | ours (N) | SMAX (N) | ratio | ours per CPU-s | SMAX per CPU-s | ratio per CPU-s |",
+                "|---|---:|---:|---:|---:|---:|---:|"]
         for name in dict.fromkeys(r["map"] for r in rows):
             ours, smax = _best_row(doc, "native", map=name), _best_row(doc, "smax", map=name, mode="scan")
             if ours and smax:
+                a, b = _per_cpu(ours), _per_cpu(smax)
                 out.append(f"| {name} | {_fmt(ours['steps_per_second'])} ({ours['num_envs']}) | "
                            f"{_fmt(smax['steps_per_second'])} ({smax['num_envs']}) | "
-                           f"{ours['steps_per_second'] / smax['steps_per_second']:.2f}× |")
+                           f"{ours['steps_per_second'] / smax['steps_per_second']:.2f}× | {_fmt(a)} | {_fmt(b)} | "
+                           + (f"{a / b:.2f}× |" if a and b else "– |"))
     return out
+
+
+def _per_cpu(row: dict[str, Any] | None) -> float | None:
+    """Env steps per CPU-second of the measuring process(es): steps/s over the cores they used while timed."""
+    cores = ((row or {}).get("extra", {}).get("cpu") or {}).get("our_cores")
+    return row["steps_per_second"] / cores if cores else None
 
 
 def _subproc_table(doc: dict[str, Any]) -> list[str]:
@@ -1057,15 +1131,15 @@ def _subproc_table(doc: dict[str, Any]) -> list[str]:
            "| map | K | " + " | ".join(f"{w} worker{'s' if w > 1 else ''}" for w in workers) + " | "
            + " | ".join(f"{w}w / 1w" for w in workers if w > 1) + " |",
            "|---|---:|" + "---:|" * (2 * len(workers) - 1)]
-    out[-2] += " others' cores |"
+    out[-2] += " cores lost |"
     out[-1] += "---:|"
     for s in scaling:
         rows = {r["workers"]: r for r in _rows(doc, "subproc", map=s["map"]) if r["extra"]["envs_per_worker"] == s["k"]}
         out.append(f"| {s['map']} | {s['k']} | " + " | ".join(_fmt(s.get(f"sps_{w}")) for w in workers) + " | "
                    + " | ".join(f"{s[f'ratio_{w}']:.2f}×" if f"ratio_{w}" in s else "–" for w in workers if w > 1)
                    + " | " + " / ".join(_others(rows.get(w)) for w in workers) + " |")
-    out += ["", "Speed-up needs free cores: the last column gives the cores other processes used while each worker "
-            "count was timed (1 / 2 / 4 workers); on 2 cores every core they hold is one the workers lack."]
+    out += ["", "Speed-up needs free cores: the last column gives the cores lost to other processes and the "
+            "hypervisor while each worker count was timed (1 / 2 / 4 workers)."]
     return out
 
 
@@ -1074,7 +1148,7 @@ def _single_env_table(doc: dict[str, Any]) -> list[str]:
     if not rows:
         return []
     out = ["", "## One battle: `StarCraft2Env` on 3m in pymarl's loop (get_state, get_avail_actions, get_obs, step)",
-           "", "| env | opponent | steps/s | episodes/s | others' cores |", "|---|---|---:|---:|---:|"]
+           "", "| env | opponent | steps/s | episodes/s | cores lost |", "|---|---|---:|---:|---:|"]
     for r in rows:
         out.append(f"| StarCraft2Env | {r['opponent']} | {_fmt(r['steps_per_second'])}{_spread(r)} | "
                    f"{r['episodes_per_second']:,.1f} | {_others(r)} |")
@@ -1161,8 +1235,9 @@ def _profile_tables(doc: dict[str, Any]) -> list[str]:
 
 
 def plot_report(doc: dict[str, Any], path: str | os.PathLike) -> bool:
-    """A PNG: steps/s against N per map (ours solid, SMAX dashed), and subprocess scaling. False without
-    matplotlib (an optional dependency: the ``[dev]`` and ``[render]`` extras)."""
+    """A PNG: steps/s against N per map (ours solid, SMAX dashed) and subprocess scaling, each when measured.
+    False without matplotlib (an optional dependency: the ``[dev]`` and ``[render]`` extras) or with nothing to
+    draw."""
     try:
         import matplotlib
 
@@ -1170,12 +1245,25 @@ def plot_report(doc: dict[str, Any], path: str | os.PathLike) -> bool:
         import matplotlib.pyplot as plt
     except ImportError:
         return False
-    scaling = _subproc_scaling(doc)
-    fig, axes = plt.subplots(1, 2 if scaling else 1, figsize=(13 if scaling else 7.5, 5), squeeze=False)
-    ax = axes[0][0]
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    native_maps = list(dict.fromkeys(r["map"] for r in _rows(doc, "native")))
-    for i, name in enumerate(native_maps):
+    panels = [draw for draw, rows in ((_plot_native, _rows(doc, "native")), (_plot_scaling, _subproc_scaling(doc)))
+              if rows]
+    if not panels:
+        return False
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels) + 0.5, 5), squeeze=False)
+    for draw, ax in zip(panels, axes[0], strict=True):
+        draw(doc, ax, plt.rcParams["axes.prop_cycle"].by_key()["color"])
+    m = doc["machine"]
+    fig.suptitle(f"smac-hard-gym {m.get('smac_hard_gym')} on {m['cpu']} ({m['cores']} cores), {m['date']}",
+                 fontsize=9)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def _plot_native(doc: dict[str, Any], ax: Any, colours: list[str]) -> None:
+    for i, name in enumerate(dict.fromkeys(r["map"] for r in _rows(doc, "native"))):
         colour = colours[i % len(colours)]
         rows = sorted(_rows(doc, "native", map=name), key=lambda r: r["num_envs"])
         ax.plot([r["num_envs"] for r in rows], [r["steps_per_second"] for r in rows], "o-", color=colour, label=name)
@@ -1190,26 +1278,20 @@ def plot_report(doc: dict[str, Any], path: str | os.PathLike) -> bool:
     ax.set_title("NativeVectorEnv (solid) vs SMAX jit+scan (dashed)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
-    if scaling:
-        ax = axes[0][1]
-        workers = sorted({r["workers"] for r in _rows(doc, "subproc")})
-        for s in scaling:
-            ws = [w for w in workers if f"ratio_{w}" in s]
-            ax.plot(ws, [s[f"ratio_{w}"] for w in ws], "o-", label=f"{s['map']}, K={s['k']} per worker")
-        cores = doc["machine"]["cores"] or 1
-        ax.plot(workers, [min(w, cores) for w in workers], ":", color="grey", label=f"ideal on {cores} cores")
-        ax.axhline(1.7, color="red", lw=0.8, ls="--", label="target 1.7x at 2 workers")
-        ax.set_xticks(workers)
-        ax.set_xlabel("worker processes")
-        ax.set_ylabel("env steps/s over one worker")
-        ax.set_title("SubprocVectorEnv scaling")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
-    m = doc["machine"]
-    fig.suptitle(f"smac-hard-gym {m.get('smac_hard_gym')} on {m['cpu']} ({m['cores']} cores), {m['date']}",
-                 fontsize=9)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+
+
+def _plot_scaling(doc: dict[str, Any], ax: Any, colours: list[str]) -> None:
+    workers = sorted({r["workers"] for r in _rows(doc, "subproc")})
+    for i, s in enumerate(_subproc_scaling(doc)):
+        ws = [w for w in workers if f"ratio_{w}" in s]
+        ax.plot(ws, [s[f"ratio_{w}"] for w in ws], "o-", color=colours[i % len(colours)],
+                label=f"{s['map']}, K={s['k']} per worker")
+    cores = doc["machine"]["cores"] or 1
+    ax.plot(workers, [min(w, cores) for w in workers], ":", color="grey", label=f"ideal on {cores} cores")
+    ax.axhline(1.7, color="red", lw=0.8, ls="--", label="target 1.7x at 2 workers")
+    ax.set_xticks(workers)
+    ax.set_xlabel("worker processes")
+    ax.set_ylabel("env steps/s over one worker")
+    ax.set_title("SubprocVectorEnv scaling")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)

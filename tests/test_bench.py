@@ -100,6 +100,17 @@ def test_bench_vector_cli_smoke(tmp_path, capsys):
     assert "| 3m | 2 |" in markdown and "Subprocess vector env" in markdown
     assert out.with_suffix(".png").stat().st_size > 0
     assert "| 3m | 2 |" in capsys.readouterr().out
+    # The JSON alone re-renders the same tables.
+    out.with_suffix(".md").unlink()
+    assert main(["bench", "report", str(out)]) == 0
+    assert out.with_suffix(".md").read_text() == markdown
+
+
+def test_bench_report_rejects_other_json(tmp_path, capsys):
+    path = tmp_path / "engine.json"
+    path.write_text(json.dumps({"benchmark": "engine", "results": []}))
+    assert main(["bench", "report", str(path)]) == 2
+    assert "not a `bench vector` result" in capsys.readouterr().err
 
 
 def test_bench_vector_rejects_bad_input(capsys):

@@ -3,6 +3,7 @@
 - ``bench vector``: the suite through the gymnasium vector API (native and subprocess vector envs, the engine
   alone, ``StarCraft2Env`` on one battle, opponents, memory, profiles), optionally side by side with SMAX
   (``--peer smax``); writes JSON, a markdown table and a PNG.
+- ``bench report PATH.json``: re-render the tables, targets and plot of a ``bench vector`` JSON.
 - ``bench engine``: the battle engine alone, random commands, resets counted.
 """
 
@@ -103,10 +104,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="also run SMAX (JaxMARL) on the maps it has, in the same run, through its own Python")
     vec.add_argument("--peer-python", default=None, metavar="PATH",
                      help="the Python with jaxmarl (default $SMAX_PYTHON, else smax-venv/ beside the repository)")
+    vec.add_argument("--numba-threads", type=_count, default=None, metavar="N",
+                     help="threads of the engine's parallel kernels here (default: numba's, one per core); "
+                          "subprocess workers always use one")
     vec.add_argument("--json", default=None, metavar="PATH",
                      help="write the results as JSON here, with the markdown table (.md) and the plot (.png) beside")
     vec.add_argument("--markdown", default=None, metavar="PATH", help="markdown table path (default: beside --json)")
     vec.add_argument("--plot", default=None, metavar="PATH", help="PNG path (default: beside --json)")
+
+    rep = sub.add_parser("report", help="re-render the tables (.md), targets and plot (.png) of a `bench vector` JSON")
+    rep.add_argument("json", metavar="PATH", help="a JSON written by `bench vector --json`")
+    rep.add_argument("--markdown", default=None, metavar="PATH", help="markdown path (default: beside the JSON)")
+    rep.add_argument("--plot", default=None, metavar="PATH", help="PNG path (default: beside the JSON)")
 
     eng = sub.add_parser("engine", help="the battle engine alone, random commands, resets counted")
     eng.add_argument("--map", default="3m", help="map name, or comma-separated names (default 3m)")
@@ -119,19 +128,61 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.target == "engine":
         return _run_engine(args)
+    if args.target == "report":
+        return _run_report(args)
     return _run_vector(args)
 
 
-def _run_vector(args: argparse.Namespace) -> int:
+def _run_report(args: argparse.Namespace) -> int:
     import json
 
-    from smac_hard_gym.bench import SuiteConfig, markdown_report, plot_report, run_suite
+    from smac_hard_gym.bench import must_reach
+
+    path = Path(args.json)
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError) as err:
+        print(f"smac-hard-gym bench report: cannot read {path}: {err}", file=sys.stderr)
+        return 2
+    if doc.get("benchmark") != "vector":
+        print(f"smac-hard-gym bench report: {path} is not a `bench vector` result (benchmark="
+              f"{doc.get('benchmark')!r})", file=sys.stderr)
+        return 2
+    doc["must_reach"] = must_reach(doc)
+    _write_outputs(doc, doc.get("command", ""), None, args.markdown or str(path.with_suffix(".md")),
+                   args.plot or str(path.with_suffix(".png")))
+    return 0
+
+
+def _write_outputs(doc: dict, command: str, json_path: str | None, markdown: str | None, plot: str | None) -> None:
+    import json
+
+    from smac_hard_gym.bench import markdown_report, plot_report
+
+    text = markdown_report(doc, command)
+    print()
+    print(text)
+    if json_path:
+        Path(json_path).parent.mkdir(parents=True, exist_ok=True)
+        Path(json_path).write_text(json.dumps(doc, indent=1))
+        print(f"wrote {json_path}")
+    if markdown:
+        Path(markdown).parent.mkdir(parents=True, exist_ok=True)
+        Path(markdown).write_text(text)
+        print(f"wrote {markdown}")
+    if plot:
+        print(f"wrote {plot}" if plot_report(doc, plot) else "no plot: matplotlib is not installed (pip install "
+              "matplotlib)")
+
+
+def _run_vector(args: argparse.Namespace) -> int:
+    from smac_hard_gym.bench import SuiteConfig, run_suite
 
     config = SuiteConfig(maps=args.maps, num_envs=args.num_envs, opponent=args.opponent, workers=args.workers,
                          envs_per_worker=args.envs_per_worker, subproc_maps=args.subproc_maps,
                          opponent_num_envs=args.opponent_num_envs, memory=args.memory, profile=args.profile,
                          sections=args.sections, seconds=args.seconds, repeats=args.repeats, seed=args.seed,
-                         peer=args.peer, peer_python=args.peer_python)
+                         peer=args.peer, peer_python=args.peer_python, numba_threads=args.numba_threads)
     print("config: " + ", ".join(f"{k}={v}" for k, v in vars(args).items() if k not in ("command", "target")))
     try:
         doc = run_suite(config)
@@ -140,22 +191,9 @@ def _run_vector(args: argparse.Namespace) -> int:
         return 2
     command = "smac-hard-gym " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
     doc["command"] = command
-    text = markdown_report(doc, command)
-    print()
-    print(text)
     markdown = args.markdown or (str(Path(args.json).with_suffix(".md")) if args.json else None)
     plot = args.plot or (str(Path(args.json).with_suffix(".png")) if args.json else None)
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(doc, indent=1))
-        print(f"wrote {args.json}")
-    if markdown:
-        Path(markdown).parent.mkdir(parents=True, exist_ok=True)
-        Path(markdown).write_text(text)
-        print(f"wrote {markdown}")
-    if plot:
-        print(f"wrote {plot}" if plot_report(doc, plot) else "no plot: matplotlib is not installed (pip install "
-              "matplotlib)")
+    _write_outputs(doc, command, args.json, markdown, plot)
     return 0
 
 
