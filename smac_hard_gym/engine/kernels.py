@@ -14,7 +14,8 @@ parallel over the batch.
 6. ``_deaths``.
 
 Simplifications against SC2 (listed in the README): damage lands when the weapon fires (no projectile travel or
-damage point), no random cooldown jitter, separation is a positional push rather than SC2's steering.
+damage point), separation is a positional push rather than SC2's steering. The only random draw is SC2's random
+attack delay, from each battle's seeded xorshift stream (``BattleState.rng``).
 Rows are passed as explicit arguments, not as the state tuple: reading a field of a tuple costs a reference-count
 update in numba, which dominated the loop when done per unit.
 """
