@@ -66,7 +66,7 @@ _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the sca
 _EDGE = 1e-4  # keeps positions strictly inside the map
 _INF = 1e300
 _SETTLE_PASSES = 16  # at most this many extra separation passes after the last loop of an env step
-_SETTLED = 0.02  # ... stopping once no overlap is deeper than this
+_SETTLED = 0.05  # ... stopping once no overlap is deeper than this
 
 inline = njit(cache=True, inline="always", error_model="numpy")
 
