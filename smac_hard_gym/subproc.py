@@ -46,6 +46,8 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from smac_hard_gym.autoreset import AUTORESET_NAMES, parse_autoreset_mode
+
 __all__ = ["SubprocVectorEnv", "BatchWorker", "WorkerError", "make_subproc_env", "concat_infos",
            "ON_WORKER_ERROR", "START_METHODS"]
 
@@ -53,7 +55,6 @@ ON_WORKER_ERROR = ("raise", "restart")
 START_METHODS = tuple(mp.get_all_start_methods())
 MASK_KEY = "action_mask"
 RESTART_KEY = "worker_restarted"
-_AUTORESET_NAMES = {key: mode for mode in AutoresetMode for key in (mode.value, mode.name, mode.name.lower())}
 
 
 class WorkerError(RuntimeError):
@@ -86,7 +87,7 @@ class BatchWorker:
         mode = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
         return {
             "num_envs": env.num_envs, "single_observation_space": env.single_observation_space,
-            "single_action_space": env.single_action_space, "autoreset_mode": _AUTORESET_NAMES.get(mode, mode),
+            "single_action_space": env.single_action_space, "autoreset_mode": AUTORESET_NAMES.get(mode, mode),
             "render_mode": getattr(env, "render_mode", None), "mask_size": _mask_size(env),
         }
 
@@ -405,7 +406,7 @@ class SubprocVectorEnv(VectorEnv):
         self.on_worker_error = on_worker_error
         self.max_failures = int(max_failures)
         self.worker_threads = int(worker_threads)
-        self._requested_mode = None if autoreset_mode is None else _parse_mode(autoreset_mode)
+        self._requested_mode = None if autoreset_mode is None else parse_autoreset_mode(autoreset_mode)
         self._ctx = mp.get_context(start_method)
         if start_method == "forkserver":
             # The server imports the engine once, so each worker forks ready to run: no per-worker imports,
@@ -822,14 +823,6 @@ def _unpack_error(value: tuple[bytes | None, str], index: int) -> BaseException:
     return err
 
 
-def _parse_mode(mode: AutoresetMode | str) -> AutoresetMode:
-    if isinstance(mode, AutoresetMode):
-        return mode
-    if isinstance(mode, str) and mode in _AUTORESET_NAMES:
-        return _AUTORESET_NAMES[mode]
-    raise ValueError(f"autoreset_mode must be an AutoresetMode or one of {sorted(_AUTORESET_NAMES)}, got {mode!r}")
-
-
 def _split_seed(seed: Any, n: int) -> list[int | None] | None:
     if seed is None:
         return None
@@ -859,7 +852,7 @@ def make_subproc_env(map_name: str = "3m", num_workers: int = 2, envs_per_worker
             raise ValueError(f"{name} must be a positive int, got {value!r}")
     from smac_hard_gym.vector import NativeVectorEnv
 
-    mode = _parse_mode(autoreset_mode)
+    mode = parse_autoreset_mode(autoreset_mode)
     factory = functools.partial(NativeVectorEnv, map_name, num_envs=int(envs_per_worker), autoreset_mode=mode,
                                 **env_kwargs)
     return SubprocVectorEnv([factory] * int(num_workers), autoreset_mode=mode, start_method=start_method,

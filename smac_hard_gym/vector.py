@@ -18,24 +18,13 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from smac_hard_gym.autoreset import parse_autoreset_mode
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.features import RED_WON, SmacOptions
 from smac_hard_gym.gym_env import INVALID_ACTION_POLICIES, RENDER_FPS, JointView, make_options
 
 __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
-
-# Every spelling of a mode that users meet: gymnasium's values ("NextStep"), enum names, RLlib's "next_step".
-_AUTORESET_NAMES = {key: mode for mode in AutoresetMode for key in (mode.value, mode.name, mode.name.lower())}
-
-
-def parse_autoreset_mode(mode: AutoresetMode | str) -> AutoresetMode:
-    """An :class:`~gymnasium.vector.AutoresetMode` from the enum or one of its spellings."""
-    if isinstance(mode, AutoresetMode):
-        return mode
-    if isinstance(mode, str) and mode in _AUTORESET_NAMES:
-        return _AUTORESET_NAMES[mode]
-    raise ValueError(f"autoreset_mode must be an AutoresetMode or one of {sorted(_AUTORESET_NAMES)}, got {mode!r}")
 
 
 def _masked(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
