@@ -20,14 +20,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP, CMD_STOP, BattleState, Commands
-from smac_hard_gym.features import N_ACTIONS_NO_ATTACK, SHOOT_RANGE, SIDE_NAMES, Geometry, SideFeatures
+from smac_hard_gym.engine.state import BattleState, Commands
+from smac_hard_gym.feature_kernels import (
+    N_ACTIONS_NO_ATTACK,
+    available_actions_batch,
+    decode_actions_batch,
+    first_invalid_action,
+)
+from smac_hard_gym.features import SIDE_NAMES, SideFeatures
 
 __all__ = ["InvalidActionError", "available_actions", "check_actions", "decode_actions", "action_name"]
 
 ACTION_NOOP, ACTION_STOP = 0, 1
-# (dx, dy) unit steps of actions 2..5: north, south, east, west.
-MOVE_STEPS = np.array([(0.0, 1.0), (0.0, -1.0), (1.0, 0.0), (-1.0, 0.0)])
 _MOVE_WORDS = ("move north", "move south", "move east", "move west")
 
 
@@ -47,34 +51,12 @@ def action_name(action: int, healer: bool = False) -> str:
     return f"heal ally {j}" if healer else f"attack enemy {j}"
 
 
-def available_actions(feats: SideFeatures, state: BattleState, geo: Geometry | None = None,
-                      out: np.ndarray | None = None) -> np.ndarray:
+def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray | None = None) -> np.ndarray:
     """Available actions of every agent of ``feats``'s side: bool ``(B, n_agents, n_actions)``."""
-    if geo is None or (feats.any_healer and geo.ally_dist is None):
-        geo = feats.geometry(state, allies=feats.any_healer)
     if out is None:
-        out = np.zeros((state.alive.shape[0], feats.n_agents, feats.n_actions), dtype=bool)
-    alive = geo.own_alive
-    out[..., ACTION_NOOP] = ~alive
-    out[..., ACTION_STOP] = alive
-
-    # Probe cells of the four moves at once: (B, n, 4).
-    half = feats.move_amount / 2.0
-    cx = np.trunc(state.x[:, feats.own, None] + MOVE_STEPS[:, 0] * half).astype(np.int64)
-    cy = np.trunc(state.y[:, feats.own, None] + MOVE_STEPS[:, 1] * half).astype(np.int64)
-    inside = (cx >= 0) & (cx < feats.map_x) & (cy >= 0) & (cy < feats.map_y)
-    pathable = feats.pathable[np.where(inside, cx, 0), np.where(inside, cy, 0)]
-    out[..., 2:N_ACTIONS_NO_ATTACK] = alive[..., None] & inside & pathable
-
-    targets = out[..., N_ACTIONS_NO_ATTACK:]
-    np.logical_and(alive[:, :, None] & geo.enemy_alive[:, None, :], geo.enemy_dist <= SHOOT_RANGE, out=targets)
-    if feats.any_healer:
-        k = feats.n_heal_targets
-        healable = (alive[:, :, None] & alive[:, None, :] & (geo.ally_dist <= SHOOT_RANGE)
-                    & ~feats.own_healer[None, None, :])[:, :, :k]
-        healers = feats.own_healer
-        targets[:, healers, :] = False
-        targets[:, healers, :k] = healable[:, healers]
+        out = np.empty((state.alive.shape[0], feats.n_agents, feats.n_actions), dtype=bool)
+    available_actions_batch(state.x, state.y, state.alive, feats.own.start, feats.enemy.start, feats.own_healer,
+                            feats.heal_target_ok, feats.pathable, feats.move_amount / 2.0, feats.n_heal_targets, out)
     return out
 
 
@@ -93,16 +75,15 @@ def check_actions(feats: SideFeatures, actions: np.ndarray, avail: np.ndarray,
     if acts.shape != (batch, n):
         raise InvalidActionError(f"{SIDE_NAMES[feats.side]} actions must have shape ({batch}, {n}) "
                                  f"(battles, agents), got {acts.shape}")
-    check = np.ones(batch, dtype=bool) if active is None else np.asarray(active, dtype=bool)
-    in_range = (acts >= 0) & (acts < feats.n_actions)
-    ok = in_range & avail[np.arange(batch)[:, None], np.arange(n)[None, :], np.clip(acts, 0, feats.n_actions - 1)]
-    bad = np.argwhere(~ok & check[:, None])
-    if len(bad):
-        b, i = (int(v) for v in bad[0])
+    check = np.ones(batch, dtype=bool) if active is None else np.ascontiguousarray(active, dtype=bool)
+    acts = np.ascontiguousarray(acts)
+    bad = first_invalid_action(acts, avail, check)
+    if bad >= 0:
+        b, i = divmod(int(bad), n)
         a = int(acts[b, i])
         where = f"battle {b}, " if batch > 1 else ""
         who = f"{where}{SIDE_NAMES[feats.side]} agent {i}"
-        if not in_range[b, i]:
+        if not 0 <= a < feats.n_actions:
             raise InvalidActionError(f"{who}: action {a} is out of range; actions are 0..{feats.n_actions - 1}")
         healer = bool(feats.own_healer[i])
         allowed = [int(v) for v in np.flatnonzero(avail[b, i])]
@@ -116,31 +97,6 @@ def decode_actions(feats: SideFeatures, state: BattleState, actions: np.ndarray,
                    active: np.ndarray) -> None:
     """Write the engine commands of validated ``actions`` ``(B, n_agents)`` into ``commands`` for this side's slots
     in battles with ``active[b]`` (other battles' commands are left as they are)."""
-    own = feats.own
-    rows = np.flatnonzero(active)
-    acts = actions[rows]
-    kind = np.full(acts.shape, CMD_NOOP, dtype=np.int8)
-    target = np.full(acts.shape, -1, dtype=np.int32)
-    x = state.x[rows, own].copy()
-    y = state.y[rows, own].copy()
-
-    kind[acts == ACTION_STOP] = CMD_STOP
-    is_move = (acts >= 2) & (acts < N_ACTIONS_NO_ATTACK)
-    kind[is_move] = CMD_MOVE
-    step = MOVE_STEPS[np.clip(acts - 2, 0, 3)] * feats.move_amount
-    x = np.where(is_move, x + step[..., 0], x)
-    y = np.where(is_move, y + step[..., 1], y)
-
-    is_target = acts >= N_ACTIONS_NO_ATTACK
-    heals = is_target & feats.own_healer[None, :]
-    attacks = is_target & ~heals
-    j = acts - N_ACTIONS_NO_ATTACK
-    kind[attacks] = CMD_ATTACK
-    target[attacks] = feats.enemy.start + j[attacks]
-    kind[heals] = CMD_HEAL
-    target[heals] = own.start + j[heals]
-
-    commands.kind[rows, own] = kind
-    commands.target[rows, own] = target
-    commands.x[rows, own] = x
-    commands.y[rows, own] = y
+    decode_actions_batch(np.ascontiguousarray(actions, dtype=np.int64), np.ascontiguousarray(active, dtype=bool),
+                         state.x, state.y, feats.own.start, feats.enemy.start, feats.own_healer, feats.move_amount,
+                         commands.kind, commands.target, commands.x, commands.y)

@@ -6,8 +6,8 @@ Units and rules (every figure this module produces follows them):
   once counts N env steps. Resets are included: the vector envs run in ``SameStep`` autoreset mode, so every step
   of every battle is a real transition and finished battles restart inside the step that ended them.
 - The **policy** is uniform over each agent's legal actions (:class:`RandomLegalPolicy`): one uniform draw per
-  (battle, agent, action) plus the mask, then argmax, so it never picks an illegal action and costs a few vector
-  operations per step.
+  (battle, agent) picks a rank among the legal actions, in a compiled loop, so it never picks an illegal action and
+  costs little next to the env. (SMAX's side draws the same distribution inside its jitted step.)
 - **Compile time apart.** Every configuration is built and stepped twice before timing; the cold start of a fresh
   process (import, numba cache load or compile, first step) is measured on its own (:func:`cold_start`).
 - **Medians of repeats.** Each configuration runs ``repeats`` timed windows of at least ``seconds`` seconds (and at
@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "DEFAULT_MAPS", "DEFAULT_NUM_ENVS", "SECTIONS", "SMAX_MAPS", "Measurement", "RandomLegalPolicy", "SuiteConfig",
@@ -255,24 +256,40 @@ def write_json(path: str | os.PathLike, kind: str, results: list) -> None:
 # The policy.
 
 
-class RandomLegalPolicy:
-    """Uniform over each agent's legal actions, for a whole batch in a few array operations.
+@njit(cache=True)
+def _pick_legal(masks, draws, out):
+    """out[b, i] = the legal action of rank int(draws[b, i] * legal count) among agent i's legal actions."""
+    for b in range(masks.shape[0]):
+        for i in range(masks.shape[1]):
+            count = 0
+            for a in range(masks.shape[2]):
+                count += masks[b, i, a] != 0
+            rank = int(draws[b, i] * count)
+            for a in range(masks.shape[2]):
+                if masks[b, i, a] != 0:
+                    if rank == 0:
+                        out[b, i] = a
+                        break
+                    rank -= 1
 
-    A uniform draw in [0, 1) per (battle, agent, action) plus the mask (1 for legal) puts every legal action above
-    every illegal one, and among the legal ones the argmax is uniform. Every agent always has a legal action
+
+class RandomLegalPolicy:
+    """Uniform over each agent's legal actions: one uniform draw per (battle, agent) picks a rank among the legal
+    actions (a compiled loop, so that the policy costs little next to the env). Every agent always has a legal action
     (no-op when dead, stop when alive), so the result is always legal.
     """
 
     def __init__(self, num_envs: int, n_agents: int, n_actions: int, seed: int = 0) -> None:
         self.rng = np.random.default_rng(seed)
-        self._draws = np.empty((num_envs, n_agents, n_actions), dtype=np.float32)
+        self.shape = (num_envs, n_agents, n_actions)
+        self._draws = np.empty((num_envs, n_agents), dtype=np.float64)
 
     def __call__(self, masks: np.ndarray) -> np.ndarray:
         """``masks``: bool or int ``(N, n_agents * n_actions)`` or ``(N, n_agents, n_actions)``; int64 (N, n_agents)."""
-        draws = self._draws
-        self.rng.random(out=draws, dtype=np.float32)
-        draws += np.asarray(masks).reshape(draws.shape)
-        return draws.argmax(axis=2)
+        self.rng.random(out=self._draws)
+        out = np.empty(self.shape[:2], dtype=np.int64)
+        _pick_legal(np.ascontiguousarray(masks).reshape(self.shape), self._draws, out)
+        return out
 
 
 class _VectorLoop:
@@ -586,11 +603,10 @@ _CORE_PARTS = (
     ("opponent", "act", "opponent script"),
     ("features.0", "observations", "observations"),
     ("features.0", "global_state", "global state"),
-    ("features.0", "geometry", "geometry (obs + masks)"),
     ("core_module", "available_actions", "action masks"),
     ("core_module", "check_actions", "action checks + decoding"),
     ("core_module", "decode_actions", "action checks + decoding"),
-    ("core", "rewards", "rewards"),
+    ("core_module", "finish_step", "outcome, rewards, counters"),
 )
 
 
@@ -607,9 +623,7 @@ def _wrap_core(splits: _Splits, core: Any) -> None:
 def _split_table(splits: _Splits, total: float, steps: int, policy_seconds: float) -> dict[str, Any]:
     parts = dict(splits.seconds)
     parts["random policy"] = policy_seconds
-    # geometry runs inside observations and masks; report it, but count it once in the total of the parts.
-    nested = parts.get("geometry (obs + masks)", 0.0)
-    parts["Python overhead (env, core, infos)"] = max(0.0, total - (sum(parts.values()) - nested))
+    parts["Python overhead (env, core, infos)"] = max(0.0, total - sum(parts.values()))
     return {"total_seconds": total, "steps": steps,
             "us_per_step": {k: 1e6 * v / steps for k, v in parts.items()},
             "share": {k: v / total for k, v in parts.items()}}
@@ -1229,8 +1243,8 @@ def _profile_tables(doc: dict[str, Any]) -> list[str]:
             cells.append("–" if share is None else f"{share:.0%} ({us:,.0f})")
         out.append(f"| {label} | " + " | ".join(cells) + " |")
     out.append("| steps/s while profiled | " + " | ".join(_fmt(p["steps_per_second"]) for p in profiles) + " |")
-    out += ["", "Geometry (pairwise distances and visibility) runs inside observations and masks; the overhead row "
-            "is everything not in a named part (env and core bookkeeping, infos, autoreset)."]
+    out += ["", "The overhead row is everything not in a named part (env and core bookkeeping in Python, infos, "
+            "autoreset)."]
     return out
 
 

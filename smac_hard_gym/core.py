@@ -50,16 +50,14 @@ import numpy as np
 from smac_hard_gym.actions import available_actions, check_actions, decode_actions
 from smac_hard_gym.backend import Backend, make_backend
 from smac_hard_gym.engine.state import BLUE, RED, Commands
+from smac_hard_gym.feature_kernels import finish_step
 from smac_hard_gym.features import (
     BLUE_WON,
     DRAW,
     RED_WON,
-    RUNNING,
-    Geometry,
     RewardFunction,
     SideFeatures,
     SmacOptions,
-    battle_outcome,
 )
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents import Script, SideView, make_opponent
@@ -91,27 +89,37 @@ class StepResult(NamedTuple):
 
 
 class _OpponentStats:
-    """Games, red wins, blue wins, draws and timeouts, per opponent name."""
+    """Games, red wins, blue wins, draws and timeouts, per opponent name (a count table, one row per name)."""
+
+    COLUMNS = ("games", "wins", "losses", "draws", "timeouts")
 
     def __init__(self) -> None:
-        self.table: dict[str, dict[str, int]] = {}
+        self.names: list[str] = []
+        self._ids: dict[str, int] = {}
+        self.counts = np.zeros((0, len(self.COLUMNS)), dtype=np.int64)
 
-    def record(self, name: str, outcome: int, timeout: bool) -> None:
-        row = self.table.setdefault(name, {"games": 0, "wins": 0, "losses": 0, "draws": 0, "timeouts": 0})
-        row["games"] += 1
-        row["wins"] += outcome == RED_WON
-        row["losses"] += outcome == BLUE_WON
-        row["draws"] += outcome == DRAW
-        row["timeouts"] += timeout
+    def name_id(self, name: str) -> int:
+        """The row of ``name``, added on first sight."""
+        if name not in self._ids:
+            self._ids[name] = len(self.names)
+            self.names.append(name)
+            self.counts = np.vstack([self.counts, np.zeros((1, len(self.COLUMNS)), np.int64)])
+        return self._ids[name]
+
+    def record(self, name_ids: np.ndarray, outcome: np.ndarray, timeout: np.ndarray) -> None:
+        """Count finished games: the opponent row, outcome and timeout flag of each."""
+        rows = len(self.names)
+        for col, hits in enumerate((np.ones(len(name_ids), bool), outcome == RED_WON, outcome == BLUE_WON,
+                                    outcome == DRAW, timeout)):
+            self.counts[:, col] += np.bincount(name_ids, weights=hits, minlength=rows).astype(np.int64)
 
     def summary(self) -> dict[str, Any]:
-        totals = {key: sum(row[key] for row in self.table.values())
-                  for key in ("games", "wins", "losses", "draws", "timeouts")}
+        totals = {key: int(self.counts[:, col].sum()) for col, key in enumerate(self.COLUMNS)}
         totals["win_rate"] = totals["wins"] / totals["games"] if totals["games"] else 0.0
-        totals["opponents"] = {
-            name: {**row, "win_rate": row["wins"] / row["games"] if row["games"] else 0.0}
-            for name, row in sorted(self.table.items())
-        }
+        table = {name: dict(zip(self.COLUMNS, map(int, self.counts[k]), strict=True))
+                 for k, name in enumerate(self.names) if self.counts[k, 0]}
+        totals["opponents"] = {name: {**row, "win_rate": row["wins"] / row["games"]}
+                               for name, row in sorted(table.items())}
         return totals
 
 
@@ -157,12 +165,13 @@ class TwoPlayerCore:
         self.last_action = (np.full((b, self.n_red), -1, dtype=np.int64),
                             np.full((b, self.n_blue), -1, dtype=np.int64))
         self.rngs: list[np.random.Generator | None] = [None] * b
-        self._sim_rngs: list[np.random.Generator | None] = [None] * b  # the simulator's draws, apart from scripts'
         self.seeds: list[int | None] = [None] * b
         self._stats = _OpponentStats()
         self._names: list[str] = [SELF_PLAY_NAME] * b  # opponent per battle, fixed for an episode
+        self._name_ids = np.full(b, self._stats.name_id(SELF_PLAY_NAME), dtype=np.int64)  # its row in the stats
         self._avail_cache: list[np.ndarray | None] = [None, None]
-        self._geo_cache: list[Geometry | None] = [None, None]
+        self._no_restarts = np.zeros(b, dtype=bool)
+        self._no_actions = np.zeros((0, self.n_blue), dtype=np.int64)  # blue's actions when a script plays it
         self._error: BaseException | None = None
         self._closed = False
         self.reset(seed=seed)
@@ -191,11 +200,13 @@ class TwoPlayerCore:
             return
         if self._error is not None and len(np.unique(rows)) < self.batch_size:
             raise RuntimeError(f"the opponent failed ({self._error!r}); reset() every battle before going on")
-        self._seed(rows, seed)
-        # The simulator's own randomness (weapon delays) is seeded per battle too, from a stream of its own so that
-        # the scripts' draws do not depend on it.
-        engine_seeds = np.array([self._sim_rngs[b].integers(0, 2**63) for b in rows], dtype=np.int64)
-        self.backend.reset(None if battles is None else rows, seeds=engine_seeds)
+        restart, engine_seeds = self._seed(rows, seed)
+        if restart.all():
+            self.backend.reset(None if battles is None else rows, seeds=engine_seeds)
+        else:  # the simulator streams of the other battles go on, like the scripts' generators
+            if restart.any():
+                self.backend.reset(rows[restart], seeds=engine_seeds[restart])
+            self.backend.reset(rows[~restart])
         self.episode_step[rows] = 0
         self.done[rows] = False
         self.last_action[RED][rows] = -1
@@ -208,7 +219,8 @@ class TwoPlayerCore:
                 self._error = err
                 raise
             for b in rows:
-                self._names[b] = self.opponent.name_of(int(b))
+                self._names[b] = name = self.opponent.name_of(int(b))
+                self._name_ids[b] = self._stats.name_id(name)
         self._error = None
 
     def step(self, red_actions: Any, blue_actions: Any = None) -> StepResult:
@@ -244,28 +256,26 @@ class TwoPlayerCore:
         self.backend.step(self.commands, active)
         state = self.backend.state
         self._invalidate()
-        self.episode_step[active] += 1
-        self.last_action[RED][active] = red[active]
-        if blue is not None:
-            self.last_action[BLUE][active] = blue[active]
-
-        outcome = battle_outcome(state.alive, self._fighter, self.n_red)
-        outcome[~active] = RUNNING
         # A backend that lost its game (sc2: protocol or connection error) restarted it: that episode ended
         # without a result and earns nothing.
-        restarted = np.asarray(getattr(self.backend, "restarted", np.zeros(self.batch_size, bool)), bool) & active
-        outcome[restarted] = RUNNING
-        reward = self.rewards(prev_hs, prev_alive, state, outcome)
-        reward[~active | restarted] = 0.0
-        terminated = (outcome != RUNNING) | restarted
-        truncated = active & ~terminated & (self.episode_step >= self.spec.episode_limit)
-        self.done |= terminated | truncated
+        restarted = getattr(self.backend, "restarted", None)
+        restarted = self._no_restarts if restarted is None else np.ascontiguousarray(restarted, dtype=bool)
+        size = self.batch_size
+        outcome, reward = np.empty(size, np.int8), np.empty((size, 2), np.float32)
+        terminated, truncated = np.empty(size, bool), np.empty(size, bool)
+        dead_red, dead_blue = np.empty(size, np.int64), np.empty(size, np.int64)
+        rewards = self.rewards
+        finish_step(prev_hs, prev_alive, state.alive, state.health, state.shield, self._fighter, self.n_red, active,
+                    restarted, red, self._no_actions if blue is None else blue, self.last_action[RED],
+                    self.last_action[BLUE], self.episode_step, self.spec.episode_limit, rewards.kernel_values,
+                    rewards.kernel_flags, rewards.divisor, self.done, outcome, reward, terminated, truncated,
+                    dead_red, dead_blue)
+        ended = terminated | truncated
+        if ended.any():
+            self._stats.record(self._name_ids[ended], outcome[ended], truncated[ended])
         names = list(self._names)
-        for b in np.flatnonzero(terminated | truncated):
-            self._stats.record(names[b], int(outcome[b]), bool(truncated[b]))
-        dead = ~state.alive
-        return StepResult(reward, terminated, truncated, outcome, dead[:, :self.n_red].sum(axis=1),
-                          dead[:, self.n_red:].sum(axis=1), active, names, restarted)
+        return StepResult(reward, terminated, truncated, outcome, dead_red, dead_blue, active, names,
+                          restarted & active)
 
     # -----------------------------------------------------------------------------------------------------------
     # Features.
@@ -274,16 +284,14 @@ class TwoPlayerCore:
         """bool ``(B, n, n_actions)``; computed once per state (treat as read-only)."""
         side = self._side(side)
         if self._avail_cache[side] is None:
-            self._avail_cache[side] = available_actions(self.features[side], self.backend.state,
-                                                        self._geometry(side))
+            self._avail_cache[side] = available_actions(self.features[side], self.backend.state)
         return self._avail_cache[side]
 
     def observations(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:
         """float32 ``(B, n, obs_size)`` (a new array unless ``out`` is given)."""
         side = self._side(side)
         return self.features[side].observations(self.backend.state, self.avail_actions(side),
-                                                self.last_action[side], self.episode_step,
-                                                geo=self._geometry(side), out=out)
+                                                self.last_action[side], self.episode_step, out=out)
 
     def global_state(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:
         """float32 ``(B, state_size)`` (a new array unless ``out`` is given)."""
@@ -295,7 +303,7 @@ class TwoPlayerCore:
     def visibility(self, side: int = RED) -> np.ndarray:
         """bool ``(B, n, n + m)``: SMAC's visibility matrix per battle."""
         side = self._side(side)
-        return self.features[side].visibility(self.backend.state, self._geometry(side))
+        return self.features[side].visibility(self.backend.state)
 
     def side_view(self, side: int) -> SideView:
         """A :class:`~smac_hard_gym.opponents.api.SideView` of ``side`` over the live state."""
@@ -322,17 +330,10 @@ class TwoPlayerCore:
     # Helpers.
 
     def invalidate(self) -> None:
-        """Forget cached geometry and available actions: call after writing into ``state`` by hand."""
+        """Forget cached available actions: call after writing into ``state`` by hand."""
         self._avail_cache = [None, None]
-        self._geo_cache = [None, None]
 
     _invalidate = invalidate
-
-    def _geometry(self, side: int) -> Geometry:
-        if self._geo_cache[side] is None:
-            feats = self.features[side]
-            self._geo_cache[side] = feats.geometry(self.backend.state, allies=feats.any_healer)
-        return self._geo_cache[side]
 
     def _check_open(self) -> None:
         if self._closed:
@@ -355,13 +356,18 @@ class TwoPlayerCore:
             raise ValueError(f"battle indices must lie in 0..{self.batch_size - 1}, got {battles!r}")
         return rows
 
-    def _seed(self, rows: np.ndarray, seed: int | Sequence[int] | None) -> None:
+    def _seed(self, rows: np.ndarray, seed: int | Sequence[int] | None) -> tuple[np.ndarray, np.ndarray]:
+        """Seed the scripts' generators of ``rows``. Returns which rows' simulator streams restart, and their seeds.
+
+        The simulator's randomness (weapon delays) has a stream of its own per battle, so that the scripts' draws do
+        not depend on it: seeded from ``[s, 1]`` with the battle's seed s, from fresh entropy on a battle's first
+        unseeded reset, and otherwise left running.
+        """
         if seed is None:
-            for b in rows:
-                if self.rngs[b] is None:
-                    self.rngs[b] = np.random.default_rng()
-                    self._sim_rngs[b] = np.random.default_rng()
-            return
+            restart = np.array([self.rngs[b] is None for b in rows], dtype=bool)
+            for b in rows[restart]:
+                self.rngs[b] = np.random.default_rng()
+            return restart, np.random.default_rng().integers(0, 2**63, size=len(rows))
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + int(b) for b in rows]
         else:
@@ -369,9 +375,11 @@ class TwoPlayerCore:
             if len(seeds) != len(rows) or not all(
                     isinstance(s, (int, np.integer)) and not isinstance(s, bool) for s in seeds):
                 raise ValueError(f"seed must be an int or one int per reset battle ({len(rows)}), got {seed!r}")
-        for b, s in zip(rows, seeds, strict=True):
+        engine_seeds = np.empty(len(rows), dtype=np.int64)
+        for k, (b, s) in enumerate(zip(rows, seeds, strict=True)):
             if s < 0:
                 raise ValueError(f"seeds must be non-negative, got {s} for battle {b}")
             self.seeds[b] = int(s)
             self.rngs[b] = np.random.default_rng(int(s))
-            self._sim_rngs[b] = np.random.default_rng([int(s), 1])
+            engine_seeds[k] = np.random.default_rng([int(s), 1]).integers(0, 2**63)
+        return np.ones(len(rows), dtype=bool), engine_seeds

@@ -35,8 +35,18 @@ from typing import NamedTuple
 
 import numpy as np
 
+from smac_hard_gym import feature_kernels as fk
 from smac_hard_gym.engine.state import BLUE, RED, BattleState
 from smac_hard_gym.engine.terrain import cliff_height
+from smac_hard_gym.feature_kernels import (
+    BLUE_WON,
+    DRAW,
+    N_ACTIONS_NO_ATTACK,
+    RED_WON,
+    RUNNING,
+    SHOOT_RANGE,
+    SIGHT_RANGE,
+)
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.units import STATS, UNITS, WEAPON_HEAL, S, unit_index
 
@@ -45,13 +55,8 @@ __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW", "SIDE_NAMES",
 ]
 
-SHOOT_RANGE = 6.0  # SMAC: attack/heal available within this centre distance (<=), every unit
-SIGHT_RANGE = 9.0  # SMAC: units closer than this (<) are observed, every unit
-N_ACTIONS_NO_ATTACK = 6  # no-op, stop, move north/south/east/west
 MOVE_NAMES = ("move_north", "move_south", "move_east", "move_west")
 
-# Battle outcomes (``battle_outcome``).
-RUNNING, RED_WON, BLUE_WON, DRAW = 0, 1, 2, 3
 SIDE_NAMES = ("red", "blue")
 
 # Points around (int(x), int(y)) probed by obs_pathing_grid / obs_terrain_height, in units of move_amount, in
@@ -66,6 +71,9 @@ _STANDARD_TYPE_ORDER = {
     "colossi_stalkers_zealots": ("colossus", "stalker", "zealot"),
     "bane": ("baneling", "zergling"),
 }
+
+# Observation calls over at least this many (battle, agent, unit) triples run battles in parallel.
+PARALLEL_MIN_TRIPLES = 1 << 15
 
 _SMAC_MAX_COOLDOWN = np.array([u.smac_max_cooldown for u in UNITS], dtype=np.float64)
 
@@ -276,6 +284,21 @@ class SideFeatures:
             self.state_size = (self.state_action_offset + opt.state_last_action * n * self.n_actions
                                + opt.state_timestep_number)
 
+        # The kernels' arguments: flags and offsets as small int arrays, per-slot tables contiguous.
+        self._obs_flags = np.array([opt.obs_all_health, opt.own_health, self.shield_bits_ally,
+                                    self.shield_bits_enemy, opt.obs_last_action, opt.obs_pathing_grid,
+                                    opt.obs_terrain_height, opt.obs_timestep_number], dtype=np.int64)
+        self._obs_layout = np.array([self.enemy_offset, self.ally_offset, self.own_offset, self.enemy_feats,
+                                     self.ally_feats], dtype=np.int64)
+        self._state_flags = np.array([self.shield_bits_ally, self.shield_bits_enemy, opt.state_last_action,
+                                      opt.state_timestep_number], dtype=np.int64)
+        self._state_layout = np.array([self.ally_state_feats, self.enemy_state_feats, self.state_enemy_offset,
+                                       self.state_action_offset, self.n_actions], dtype=np.int64)
+        self._frame = np.array([*self.center, *self.max_distance], dtype=np.float64)
+        self.heal_target_ok = ~self.own_healer[:self.n_heal_targets]
+        # Enough (battle, agent, unit) triples per observation call to pay for waking the thread pool.
+        self._parallel_obs_from = max(1, PARALLEL_MIN_TRIPLES // (n * (n + self.n_enemies)))
+
     def __repr__(self) -> str:
         return (f"SideFeatures(map={self.spec.name!r}, side={SIDE_NAMES[self.side]!r}, "
                 f"obs_size={self.obs_size}, state_size={self.state_size}, n_actions={self.n_actions})")
@@ -327,103 +350,20 @@ class SideFeatures:
                         np.sqrt(edx * edx + edy * edy), adx, ady, adist)
 
     def observations(self, state: BattleState, avail: np.ndarray, last_action: np.ndarray,
-                     episode_step: np.ndarray, geo: Geometry | None = None,
-                     out: np.ndarray | None = None) -> np.ndarray:
+                     episode_step: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Per-agent observations ``(B, n_agents, obs_size)`` float32.
 
         ``avail`` is this side's available actions ``(B, n, n_actions)``, ``last_action`` its previous actions
         ``(B, n)`` (-1: none), ``episode_step`` the env steps since each battle's reset ``(B,)``.
         """
-        opt = self.options
-        geo = self.geometry(state, allies=False) if geo is None else geo
-        batch, n, m = state.alive.shape[0], self.n_agents, self.n_enemies
+        batch = state.alive.shape[0]
         if out is None:
-            out = np.zeros((batch, n, self.obs_size), dtype=np.float32)
-        else:
-            out[:] = 0.0
-        alive = geo.own_alive
-        alive_f = alive.astype(np.float32)
-        mul = np.multiply
-
-        # Move block.
-        out[:, :, 0:4] = avail[:, :, 2:6]
-        col = 4
-        if opt.obs_pathing_grid or opt.obs_terrain_height:
-            inside, cx, cy = self._surrounding_cells(state)
-            if opt.obs_pathing_grid:
-                values = np.where(inside[..., :8], self.pathable[cx[..., :8], cy[..., :8]], True)
-                out[:, :, col:col + 8] = values * alive_f[..., None]
-                col += 8
-            if opt.obs_terrain_height:
-                values = np.where(inside, self.terrain_height[cx, cy], 1.0)
-                out[:, :, col:col + 9] = values * alive_f[..., None]
-
-        # Enemy rows. Products go straight into the output views (no float64 temporaries per column).
-        enemy = out[:, :, self.enemy_offset:self.ally_offset].reshape(batch, n, m, self.enemy_feats)
-        seen = alive[:, :, None] & geo.enemy_alive[:, None, :] & (geo.enemy_dist < SIGHT_RANGE)
-        seen_f = seen.astype(np.float32)
-        scaled = seen_f / np.float32(SIGHT_RANGE)
-        enemy[..., 0] = avail[:, :, N_ACTIONS_NO_ATTACK:N_ACTIONS_NO_ATTACK + m] & seen
-        mul(geo.enemy_dist, scaled, out=enemy[..., 1], casting="same_kind")
-        mul(geo.enemy_dx, scaled, out=enemy[..., 2], casting="same_kind")
-        mul(geo.enemy_dy, scaled, out=enemy[..., 3], casting="same_kind")
-        col = 4
-        if opt.obs_all_health:
-            ratio = (state.health[:, self.enemy] / self.enemy_health_max).astype(np.float32)
-            mul(ratio[:, None, :], seen_f, out=enemy[..., col])
-            col += 1
-            if self.shield_bits_enemy:
-                ratio = (state.shield[:, self.enemy] / self.enemy_shield_max).astype(np.float32)
-                mul(ratio[:, None, :], seen_f, out=enemy[..., col])
-                col += 1
-        if self.unit_type_bits:
-            mul(self.enemy_onehot[None, None], seen_f[..., None], out=enemy[..., col:col + self.unit_type_bits])
-
-        # Ally rows: every other agent of this side, in id order.
-        if n > 1:
-            ally = out[:, :, self.ally_offset:self.own_offset].reshape(batch, n, n - 1, self.ally_feats)
-            ox, oy = state.x[:, self.own], state.y[:, self.own]
-            dx = ox[:, self.others] - ox[:, :, None]
-            dy = oy[:, self.others] - oy[:, :, None]
-            dist = np.sqrt(dx * dx + dy * dy)
-            seen = alive[:, :, None] & alive[:, self.others] & (dist < SIGHT_RANGE)
-            seen_f = seen.astype(np.float32)
-            scaled = seen_f / np.float32(SIGHT_RANGE)
-            ally[..., 0] = seen_f
-            mul(dist, scaled, out=ally[..., 1], casting="same_kind")
-            mul(dx, scaled, out=ally[..., 2], casting="same_kind")
-            mul(dy, scaled, out=ally[..., 3], casting="same_kind")
-            col = 4
-            if opt.obs_all_health:
-                ratio = (state.health[:, self.own] / self.own_health_max).astype(np.float32)
-                mul(ratio[:, self.others], seen_f, out=ally[..., col])
-                col += 1
-                if self.shield_bits_ally:
-                    ratio = (state.shield[:, self.own] / self.own_shield_max).astype(np.float32)
-                    mul(ratio[:, self.others], seen_f, out=ally[..., col])
-                    col += 1
-            if self.unit_type_bits:
-                mul(self.own_onehot[self.others][None], seen_f[..., None],
-                    out=ally[..., col:col + self.unit_type_bits])
-                col += self.unit_type_bits
-            if opt.obs_last_action:
-                onehot = last_action_onehot(last_action, self.n_actions)
-                mul(onehot[:, self.others], seen_f[..., None], out=ally[..., col:col + self.n_actions])
-
-        # Own block.
-        own = out[:, :, self.own_offset:]
-        col = 0
-        if opt.own_health:
-            own[..., col] = state.health[:, self.own] / self.own_health_max * alive_f
-            col += 1
-            if self.shield_bits_ally:
-                own[..., col] = state.shield[:, self.own] / self.own_shield_max * alive_f
-                col += 1
-        if self.unit_type_bits:
-            own[..., col:col + self.unit_type_bits] = self.own_onehot[None] * alive_f[..., None]
-            col += self.unit_type_bits
-        if opt.obs_timestep_number:
-            own[..., col] = (episode_step / self.episode_limit)[:, None]
+            out = np.empty((batch, self.n_agents, self.obs_size), dtype=np.float32)
+        run = fk.observations_batch if batch >= self._parallel_obs_from else fk.observations_batch_serial
+        run(state.x, state.y, state.alive, state.health, state.shield, avail, last_action, episode_step,
+            self.own.start, self.enemy.start, self.own_health_max, self.own_shield_max, self.enemy_health_max,
+            self.enemy_shield_max, self.own_onehot, self.enemy_onehot, self._obs_flags, self.pathable,
+            self.terrain_height, self._probe_dx, self._probe_dy, self._obs_layout, float(self.episode_limit), out)
         return out
 
     def global_state(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
@@ -432,57 +372,22 @@ class SideFeatures:
 
         With ``obs_instead_of_state`` the state is the concatenation of the agents' observations ``obs``.
         """
-        opt = self.options
-        batch, n, m = state.alive.shape[0], self.n_agents, self.n_enemies
-        if opt.obs_instead_of_state:
+        batch = state.alive.shape[0]
+        if self.options.obs_instead_of_state:
             if obs is None:
                 raise ValueError("obs_instead_of_state: pass this side's observations as obs=")
-            flat = obs.reshape(batch, n * self.obs_size)
+            flat = obs.reshape(batch, self.n_agents * self.obs_size)
             if out is None:
                 return flat.astype(np.float32, copy=True)
             out[:] = flat
             return out
         if out is None:
-            out = np.zeros((batch, self.state_size), dtype=np.float32)
-        else:
-            out[:] = 0.0
-        cx, cy = self.center
-        mdx, mdy = self.max_distance
-
-        own = out[:, :self.state_enemy_offset].reshape(batch, n, self.ally_state_feats)
-        alive_f = state.alive[:, self.own].astype(np.float32)
-        own[..., 0] = state.health[:, self.own] / self.own_health_max * alive_f
-        # Medivacs report energy, every other unit its weapon cooldown (game loops until it may fire again).
-        timer = np.where(self.own_healer, state.energy[:, self.own], np.maximum(state.cooldown[:, self.own], 0.0))
-        own[..., 1] = timer / self.own_max_cooldown * alive_f
-        own[..., 2] = (state.x[:, self.own] - cx) / mdx * alive_f
-        own[..., 3] = (state.y[:, self.own] - cy) / mdy * alive_f
-        col = 4
-        if self.shield_bits_ally:
-            own[..., col] = state.shield[:, self.own] / self.own_shield_max * alive_f
-            col += 1
-        if self.unit_type_bits:
-            own[..., col:] = self.own_onehot[None] * alive_f[..., None]
-
-        enemy = out[:, self.state_enemy_offset:self.state_action_offset].reshape(batch, m, self.enemy_state_feats)
-        alive_f = state.alive[:, self.enemy].astype(np.float32)
-        enemy[..., 0] = state.health[:, self.enemy] / self.enemy_health_max * alive_f
-        enemy[..., 1] = (state.x[:, self.enemy] - cx) / mdx * alive_f
-        enemy[..., 2] = (state.y[:, self.enemy] - cy) / mdy * alive_f
-        col = 3
-        if self.shield_bits_enemy:
-            enemy[..., col] = state.shield[:, self.enemy] / self.enemy_shield_max * alive_f
-            col += 1
-        if self.unit_type_bits:
-            enemy[..., col:] = self.enemy_onehot[None] * alive_f[..., None]
-
-        col = self.state_action_offset
-        if opt.state_last_action:
-            width = n * self.n_actions
-            out[:, col:col + width] = last_action_onehot(last_action, self.n_actions).reshape(batch, width)
-            col += width
-        if opt.state_timestep_number:
-            out[:, col] = episode_step / self.episode_limit
+            out = np.empty((batch, self.state_size), dtype=np.float32)
+        fk.global_state_batch(state.x, state.y, state.alive, state.health, state.shield, state.energy,
+                              state.cooldown, last_action, episode_step, self.own.start, self.enemy.start,
+                              self.own_health_max, self.own_shield_max, self.enemy_health_max, self.enemy_shield_max,
+                              self.own_onehot, self.enemy_onehot, self.own_healer, self.own_max_cooldown, self._frame,
+                              self._state_flags, self._state_layout, float(self.episode_limit), out)
         return out
 
     def visibility(self, state: BattleState, geo: Geometry | None = None) -> np.ndarray:
@@ -496,35 +401,24 @@ class SideFeatures:
         enemies = alive[:, :, None] & geo.enemy_alive[:, None, :] & (geo.enemy_dist < SIGHT_RANGE)
         return np.concatenate([allies, enemies], axis=2)
 
-    def _surrounding_cells(self, state: BattleState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cells around each agent's ``(int(x), int(y))`` probed by the pathing/height features: the 8 points of
-        SMAC's order then the agent's own cell; returns (inside the map, cx, cy), each (B, n, 9), with cells outside
-        the map replaced by cell 0 so that they can index the grids (their values are then overridden)."""
-        xi = np.trunc(state.x[:, self.own]).astype(np.int64)
-        yi = np.trunc(state.y[:, self.own]).astype(np.int64)
-        cx = xi[..., None] + self._probe_dx
-        cy = yi[..., None] + self._probe_dy
-        inside = (cx >= 0) & (cx < self.map_x) & (cy >= 0) & (cy < self.map_y)
-        return inside, np.where(inside, cx, 0), np.where(inside, cy, 0)
-
 
 # ---------------------------------------------------------------------------------------------------------------
 # Outcome and reward.
 
 
-def battle_outcome(alive: np.ndarray, fighter: np.ndarray, n_red: int) -> np.ndarray:
+def battle_outcome(alive: np.ndarray, fighter: np.ndarray, n_red: int,
+                   dead_counts: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Outcome per battle (int8 ``(B,)``: RUNNING, RED_WON, BLUE_WON or DRAW).
 
     A side is beaten when none of its ``fighter`` units (every unit but medivacs: SMAC's "only medivacs left" rule
-    of MMM maps, applied to both sides) is alive; both beaten in the same step is a draw.
+    of MMM maps, applied to both sides) is alive; both beaten in the same step is a draw. ``dead_counts``, two int64
+    ``(B,)`` arrays, receive the dead units of red and blue.
     """
-    live = alive & fighter
-    red_left = live[:, :n_red].any(axis=1)
-    blue_left = live[:, n_red:].any(axis=1)
-    outcome = np.full(alive.shape[0], RUNNING, dtype=np.int8)
-    outcome[red_left & ~blue_left] = RED_WON
-    outcome[~red_left & blue_left] = BLUE_WON
-    outcome[~red_left & ~blue_left] = DRAW
+    batch = alive.shape[0]
+    outcome = np.empty(batch, dtype=np.int8)
+    dead_red, dead_blue = dead_counts if dead_counts is not None else (np.empty(batch, np.int64),
+                                                                       np.empty(batch, np.int64))
+    fk.outcomes_batch(alive, np.ascontiguousarray(fighter, dtype=bool), int(n_red), outcome, dead_red, dead_blue)
     return outcome
 
 
@@ -539,35 +433,20 @@ class RewardFunction:
     def __init__(self, red: SideFeatures, blue: SideFeatures, options: SmacOptions) -> None:
         self.options = options
         self.sides = (red, blue)
+        self.n_red = red.n_agents
         self.max_reward = np.array([red.max_reward(), blue.max_reward()], dtype=np.float64)
         self.divisor = (self.max_reward / options.reward_scale_rate) if options.reward_scale else np.ones(2)
+        # The kernels' form of the options: (death value, win, defeat, negative scale) and REWARD_FLAGS.
+        self.kernel_values = np.array([options.reward_death_value, options.reward_win, options.reward_defeat,
+                                 options.reward_negative_scale], dtype=np.float64)
+        self.kernel_flags = np.array([options.reward_sparse, options.reward_only_positive], dtype=np.int64)
 
     def __call__(self, prev_hs: np.ndarray, prev_alive: np.ndarray, state: BattleState,
-                 outcome: np.ndarray) -> np.ndarray:
+                 outcome: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Rewards ``(B, 2)`` float32 ([red, blue]) for the step from (``prev_hs``, ``prev_alive``), the health plus
         shield and alive flags of every unit before the step, to ``state``; ``outcome`` from :func:`battle_outcome`."""
-        opt = self.options
-        alive = state.alive
-        batch = alive.shape[0]
-        reward = np.zeros((batch, 2), dtype=np.float64)
-        won = np.stack([outcome == RED_WON, outcome == BLUE_WON], axis=1)
-        lost = np.stack([outcome == BLUE_WON, outcome == RED_WON], axis=1)
-        if opt.reward_sparse:
-            reward[won] = 1.0
-            reward[lost] = -1.0
-        else:
-            hs_now = np.where(alive, state.health + state.shield, 0.0)
-            lost_hs = np.where(prev_alive, prev_hs - hs_now, 0.0)  # includes a dying unit's last health
-            died = prev_alive & ~alive
-            neg = opt.reward_negative_scale
-            for s, feats in enumerate(self.sides):
-                delta_enemy = lost_hs[:, feats.enemy].sum(axis=1)
-                delta_deaths = opt.reward_death_value * died[:, feats.enemy].sum(axis=1)
-                if opt.reward_only_positive:
-                    reward[:, s] = np.maximum(0.0, delta_enemy + delta_deaths)
-                else:
-                    delta_deaths = delta_deaths - opt.reward_death_value * neg * died[:, feats.own].sum(axis=1)
-                    delta_ally = neg * lost_hs[:, feats.own].sum(axis=1)
-                    reward[:, s] = delta_enemy + delta_deaths - delta_ally
-            reward += won * opt.reward_win + lost * opt.reward_defeat
-        return (reward / self.divisor).astype(np.float32)
+        if out is None:
+            out = np.empty((state.alive.shape[0], 2), dtype=np.float32)
+        fk.rewards_batch(prev_hs, prev_alive, state.alive, state.health, state.shield, self.n_red,
+                         np.asarray(outcome, dtype=np.int8), self.kernel_values, self.kernel_flags, self.divisor, out)
+        return out

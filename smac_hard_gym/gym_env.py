@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from smac_hard_gym.actions import available_actions
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.features import SmacOptions
@@ -82,18 +83,19 @@ class JointView:
                 "action_mask": spaces.Box(0, 1, (self.n_agents, self.n_actions), np.int8),
             })
 
-    def observations(self, rows: np.ndarray | None = None) -> np.ndarray | dict[str, np.ndarray]:
-        """Fresh batched observations: ``(B, dim)`` float32, or a dict of ``(B, ...)`` arrays in ``"dict"`` mode.
-
-        ``rows`` (battle indices) encodes those battles only, from the same features: a vector env reads its
-        terminal observations this way before resetting the battles, and then encodes the batch once.
-        """
+    def observations(self) -> np.ndarray | dict[str, np.ndarray]:
+        """Fresh batched observations: ``(B, dim)`` float32, or a dict of ``(B, ...)`` arrays in ``"dict"`` mode."""
         core = self.core
-        if rows is None:
-            obs, avail = core.observations(RED), core.avail_actions(RED)
-            state = core.global_state(RED) if self.obs_mode != "joint" else None
-        else:
-            obs, avail, state = self._rows(np.asarray(rows, dtype=np.int64))
+        state = core.global_state(RED) if self.obs_mode != "joint" else None
+        return self._encode(core.observations(RED), core.avail_actions(RED), state)
+
+    def terminal(self, rows: np.ndarray) -> tuple[np.ndarray | dict[str, np.ndarray], np.ndarray]:
+        """Observations and int8 masks ``(len(rows), n_agents * n_actions)`` of the battles ``rows`` only, from the
+        same features: a vector env reads its terminal observations this way before resetting those battles."""
+        obs, avail, state = self._rows(np.asarray(rows, dtype=np.int64))
+        return self._encode(obs, avail, state), avail.reshape(len(rows), self.mask_size).view(np.int8)
+
+    def _encode(self, obs: np.ndarray, avail: np.ndarray, state: np.ndarray | None) -> Any:
         batch = obs.shape[0]
         if self.obs_mode == "joint":
             return obs.reshape(batch, -1)
@@ -104,7 +106,7 @@ class JointView:
     def _rows(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         core, feats = self.core, self.core.features[RED]
         state = type(core.state)(*(field[rows] for field in core.state))
-        avail = core.avail_actions(RED)[rows]
+        avail = available_actions(feats, state)
         last_action, steps = core.last_action[RED][rows], core.episode_step[rows]
         obs = feats.observations(state, avail, last_action, steps)
         global_state = None
@@ -113,9 +115,9 @@ class JointView:
                                               obs=obs if core.options.obs_instead_of_state else None)
         return obs, avail, global_state
 
-    def masks(self) -> np.ndarray:
-        """Fresh bool ``(B, n_agents * n_actions)``: the available actions, agent-major."""
-        return self.core.avail_actions(RED).reshape(-1, self.mask_size).copy()
+    def masks(self, dtype: type = bool) -> np.ndarray:
+        """Fresh ``(B, n_agents * n_actions)`` array of the available actions, agent-major (bool, or ``dtype``)."""
+        return self.core.avail_actions(RED).reshape(-1, self.mask_size).astype(dtype)
 
     def resolve_actions(self, actions: np.ndarray, policy: str, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Actions ``(B, n_agents)`` as int64 and the number replaced per battle.

@@ -19,7 +19,7 @@ import numpy as np
 
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import BLUE, RED
-from smac_hard_gym.features import N_ACTIONS_NO_ATTACK, SideFeatures, SmacOptions, last_action_onehot
+from smac_hard_gym.features import BLUE_WON, N_ACTIONS_NO_ATTACK, RED_WON, SideFeatures, SmacOptions, last_action_onehot
 
 __all__ = ["StarCraft2Env"]
 
@@ -200,7 +200,8 @@ class StarCraft2Env:
         self._total_steps += 1
         terminated = bool(result.terminated[0] or result.truncated[0])
         self._episode_over = terminated
-        won = result.battle_won[0]
+        outcome = int(result.outcome[0])
+        won = (outcome == RED_WON, outcome == BLUE_WON)
         dead_red, dead_blue = int(result.dead_red[0]), int(result.dead_blue[0])
         if self.mode == "self-play":
             reward: Any = [float(result.reward[0, RED]), float(result.reward[0, BLUE])]

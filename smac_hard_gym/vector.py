@@ -28,12 +28,11 @@ __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 
 
 def _masked(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """``values`` (a fresh array) with rows outside ``rows`` zeroed, as gymnasium's info batching leaves them."""
-    if rows.all():
-        return values
-    out = np.full(values.shape, None, dtype=object) if values.dtype == object else np.zeros_like(values)
-    out[rows] = values[rows]
-    return out
+    """``values`` (a fresh array, changed in place) with rows outside ``rows`` zeroed, as gymnasium's info batching
+    leaves them."""
+    if not rows.all():
+        values[~rows] = None if values.dtype == object else 0
+    return values
 
 
 class NativeVectorEnv(VectorEnv):
@@ -140,13 +139,15 @@ class NativeVectorEnv(VectorEnv):
         infos: dict[str, Any] = {}
         if mode == AutoresetMode.SAME_STEP and ended.any():
             rows = np.flatnonzero(ended)
-            final_obs = self.view.observations(rows)
+            final_obs, final_masks = self.view.terminal(rows)
             infos["final_obs"] = np.full(self.num_envs, None, dtype=object)
             for k, b in enumerate(rows):
                 infos["final_obs"][b] = ({key: v[k] for key, v in final_obs.items()} if isinstance(final_obs, dict)
                                          else final_obs[k])
             infos["_final_obs"] = ended.copy()
-            infos["final_info"] = self._info(ended, resets, result, replaced)
+            masks = np.zeros((self.num_envs, self.view.mask_size), dtype=np.int8)
+            masks[rows] = final_masks
+            infos["final_info"] = self._info(ended, resets, result, replaced, masks)
             infos["_final_info"] = ended.copy()
             resets, stepped = ended, stepped & ~ended
         elif mode == AutoresetMode.NEXT_STEP:
@@ -207,22 +208,23 @@ class NativeVectorEnv(VectorEnv):
         self._ended[rows] = False
 
     def _info(self, stepped: np.ndarray, resets: np.ndarray, result: Any = None,
-              replaced: np.ndarray | None = None) -> dict[str, Any]:
+              replaced: np.ndarray | None = None, masks: np.ndarray | None = None) -> dict[str, Any]:
         """Batched infos as single envs give them: step keys for the ``stepped`` battles, ``opponent`` and
-        ``action_mask`` (of the current state) for those and the ``resets`` battles; each key with its ``_key``."""
+        ``action_mask`` (of the current state, or ``masks`` if given) for those and the ``resets`` battles; each key
+        with its ``_key``."""
         values: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         if stepped.any():
             values["battle_won"] = (result.outcome == RED_WON, stepped)
-            values["dead_allies"] = (np.asarray(result.dead_red, dtype=np.int64), stepped)
-            values["dead_enemies"] = (np.asarray(result.dead_blue, dtype=np.int64), stepped)
+            values["dead_allies"] = (np.array(result.dead_red, dtype=np.int64), stepped)
+            values["dead_enemies"] = (np.array(result.dead_blue, dtype=np.int64), stepped)
             if self.invalid_action == "noop":
-                values["invalid_actions"] = (replaced, stepped)
+                values["invalid_actions"] = (replaced.copy(), stepped)
             if result.restarted.any():
                 values["restarted"] = (result.restarted.copy(), stepped)
         shown = stepped | resets
         if shown.any():
             values["opponent"] = (np.asarray(self.core.opponent_names(), dtype=object), shown)
-            values["action_mask"] = (self.view.masks().astype(np.int8), shown)
+            values["action_mask"] = (self.view.masks(np.int8) if masks is None else masks, shown)
         infos: dict[str, Any] = {}
         for key, (value, rows) in values.items():
             infos[key], infos[f"_{key}"] = _masked(value, rows), rows.copy()

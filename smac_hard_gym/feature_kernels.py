@@ -1,0 +1,465 @@
+"""Numba kernels of the SMAC layer: available actions, observations, global state, outcome and rewards, and action
+checking and decoding, each one pass over a batch of battles.
+
+The formulas are those documented in :mod:`smac_hard_gym.features` and :mod:`smac_hard_gym.actions`, which hold
+the per-side constants and call these kernels. Written as loops rather than numpy because a numpy step made some
+twenty array passes and temporaries per feature block: half of a vector env step, and nearly all of a one-battle
+step. Each kernel takes plain arrays (never the state tuple) and writes into caller-owned outputs.
+
+Float rounding follows the numpy formulation: ratios are computed in float64 and stored as float32, and offsets
+are scaled by float32's 1/9, as SMAC's float32 arrays do.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP, CMD_STOP, NO_UNIT
+
+__all__ = [
+    "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
+    "OBS_FLAGS", "STATE_FLAGS", "REWARD_FLAGS",
+    "available_actions_batch", "observations_batch", "observations_batch_serial", "global_state_batch",
+    "outcomes_batch", "rewards_batch", "finish_step", "first_invalid_action", "decode_actions_batch",
+]
+
+SHOOT_RANGE = 6.0  # SMAC: attack/heal available within this centre distance (<=), every unit
+SIGHT_RANGE = 9.0  # SMAC: units closer than this (<) are observed, every unit
+N_ACTIONS_NO_ATTACK = 6  # no-op, stop, move north/south/east/west
+
+# Battle outcomes.
+RUNNING, RED_WON, BLUE_WON, DRAW = 0, 1, 2, 3
+
+# Offsets scaled by sight range: SMAC divides float32 arrays, so the factor is float32's 1/9.
+_SIGHT_SCALE = float(np.float32(1.0) / np.float32(SIGHT_RANGE))
+# Probe directions of moves 2..5 (north, south, east, west) and of the pathing/height features.
+_MOVE_DX = np.array([0.0, 0.0, 1.0, -1.0])
+_MOVE_DY = np.array([1.0, -1.0, 0.0, 0.0])
+
+# Positions of the option flags in the int64 flag vectors the kernels take (SideFeatures builds them).
+OBS_FLAGS = ("all_health", "own_health", "shield_ally", "shield_enemy", "last_action", "pathing", "height",
+             "timestep")
+_O_ALL_HEALTH, _O_OWN_HEALTH, _O_SHIELD_ALLY, _O_SHIELD_ENEMY, _O_LAST_ACTION, _O_PATHING, _O_HEIGHT, \
+    _O_TIMESTEP = range(len(OBS_FLAGS))
+STATE_FLAGS = ("shield_ally", "shield_enemy", "last_action", "timestep")
+_S_SHIELD_ALLY, _S_SHIELD_ENEMY, _S_LAST_ACTION, _S_TIMESTEP = range(len(STATE_FLAGS))
+REWARD_FLAGS = ("sparse", "only_positive")
+
+kernel = njit(cache=True, error_model="numpy")
+inline = njit(cache=True, inline="always", error_model="numpy")
+
+
+@inline
+def _distance(x0, y0, x1, y1):
+    dx = x1 - x0
+    dy = y1 - y0
+    return math.sqrt(dx * dx + dy * dy)
+
+
+@inline
+def _cell_value(grid, fx, fy, outside):
+    """``grid`` at the cell of (fx, fy) (truncated toward zero, as Python's int), ``outside`` off the map."""
+    cx = int(fx)
+    cy = int(fy)
+    if cx < 0 or cx >= grid.shape[0] or cy < 0 or cy >= grid.shape[1]:
+        return outside
+    return grid[cx, cy]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Available actions.
+
+
+@kernel
+def available_actions_batch(x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
+                            n_heal_targets, out):
+    """Write every agent's available actions into ``out`` (bool (B, n, n_actions)); see smac_hard_gym.actions."""
+    n_battles, n, n_actions = out.shape
+    m = n_actions - N_ACTIONS_NO_ATTACK
+    for b in range(n_battles):
+        for i in range(n):
+            u = own_lo + i
+            live = alive[b, u]
+            row = out[b, i]
+            row[0] = not live
+            row[1] = live
+            xi, yi = x[b, u], y[b, u]
+            for k in range(4):
+                row[2 + k] = live and _cell_value(pathable, xi + _MOVE_DX[k] * half_move,
+                                                  yi + _MOVE_DY[k] * half_move, False)
+            if healer[i]:
+                for j in range(m):
+                    row[N_ACTIONS_NO_ATTACK + j] = False
+                for j in range(n_heal_targets):
+                    v = own_lo + j
+                    row[N_ACTIONS_NO_ATTACK + j] = (live and alive[b, v] and heal_target_ok[j]
+                                                    and _distance(xi, yi, x[b, v], y[b, v]) <= SHOOT_RANGE)
+            else:
+                for j in range(m):
+                    e = enemy_lo + j
+                    row[N_ACTIONS_NO_ATTACK + j] = (live and alive[b, e]
+                                                    and _distance(xi, yi, x[b, e], y[b, e]) <= SHOOT_RANGE)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Observations.
+
+
+@inline
+def _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+                    own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
+                    flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
+    n, obs_size = out.shape[1], out.shape[2]
+    m = enemy_health_max.shape[0]
+    bits = own_onehot.shape[1]
+    enemy_offset, ally_offset, own_offset, enemy_feats, ally_feats = layout[0], layout[1], layout[2], layout[3], \
+        layout[4]
+    for i in range(n):
+        o = out[b, i]
+        for c in range(obs_size):
+            o[c] = 0.0
+        if flags[_O_TIMESTEP]:
+            o[obs_size - 1] = episode_step[b] / episode_limit
+        u = own_lo + i
+        if not alive[b, u]:
+            continue
+        xi, yi = x[b, u], y[b, u]
+
+        # Move block: the four move actions, then the probed pathing and heights.
+        for k in range(4):
+            o[k] = avail[b, i, 2 + k]
+        col = 4
+        if flags[_O_PATHING] or flags[_O_HEIGHT]:
+            cx0, cy0 = int(xi), int(yi)
+            if flags[_O_PATHING]:
+                for k in range(8):
+                    o[col + k] = _cell_value(pathable, cx0 + probe_dx[k], cy0 + probe_dy[k], True)
+                col += 8
+            if flags[_O_HEIGHT]:
+                for k in range(9):
+                    o[col + k] = _cell_value(heights, cx0 + probe_dx[k], cy0 + probe_dy[k], np.float32(1.0))
+
+        # Enemies within sight.
+        for j in range(m):
+            e = enemy_lo + j
+            if not alive[b, e]:
+                continue
+            dx, dy = x[b, e] - xi, y[b, e] - yi
+            d = math.sqrt(dx * dx + dy * dy)
+            if not d < SIGHT_RANGE:
+                continue
+            c = enemy_offset + j * enemy_feats
+            o[c] = avail[b, i, N_ACTIONS_NO_ATTACK + j]
+            o[c + 1] = d * _SIGHT_SCALE
+            o[c + 2] = dx * _SIGHT_SCALE
+            o[c + 3] = dy * _SIGHT_SCALE
+            c += 4
+            if flags[_O_ALL_HEALTH]:
+                o[c] = health[b, e] / enemy_health_max[j]
+                c += 1
+                if flags[_O_SHIELD_ENEMY]:
+                    o[c] = shield[b, e] / enemy_shield_max[j]
+                    c += 1
+            for t in range(bits):
+                o[c + t] = enemy_onehot[j, t]
+
+        # The other agents of this side, in id order.
+        k = 0
+        for j in range(n):
+            if j == i:
+                continue
+            c = ally_offset + k * ally_feats
+            k += 1
+            v = own_lo + j
+            if not alive[b, v]:
+                continue
+            dx, dy = x[b, v] - xi, y[b, v] - yi
+            d = math.sqrt(dx * dx + dy * dy)
+            if not d < SIGHT_RANGE:
+                continue
+            o[c] = 1.0
+            o[c + 1] = d * _SIGHT_SCALE
+            o[c + 2] = dx * _SIGHT_SCALE
+            o[c + 3] = dy * _SIGHT_SCALE
+            c += 4
+            if flags[_O_ALL_HEALTH]:
+                o[c] = health[b, v] / own_health_max[j]
+                c += 1
+                if flags[_O_SHIELD_ALLY]:
+                    o[c] = shield[b, v] / own_shield_max[j]
+                    c += 1
+            for t in range(bits):
+                o[c + t] = own_onehot[j, t]
+            c += bits
+            if flags[_O_LAST_ACTION]:
+                a = last_action[b, j]
+                if a >= 0:
+                    o[c + a] = 1.0
+
+        # Own block.
+        c = own_offset
+        if flags[_O_OWN_HEALTH]:
+            o[c] = health[b, u] / own_health_max[i]
+            c += 1
+            if flags[_O_SHIELD_ALLY]:
+                o[c] = shield[b, u] / own_shield_max[i]
+                c += 1
+        for t in range(bits):
+            o[c + t] = own_onehot[i, t]
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def observations_batch(x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+                       own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
+                       flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
+    """Write every agent's observation into ``out`` (float32 (B, n, obs_size)), battles in parallel.
+
+    ``flags`` follow OBS_FLAGS; ``layout`` is (enemy_offset, ally_offset, own_offset, enemy_feats, ally_feats).
+    """
+    for b in prange(out.shape[0]):
+        _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
+                        enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out)
+
+
+@kernel
+def observations_batch_serial(x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+                              own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
+                              enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
+    """``observations_batch`` on the calling thread (small batches: waking the pool costs more than it saves)."""
+    for b in range(out.shape[0]):
+        _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
+                        enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Global state.
+
+
+@kernel
+def global_state_batch(x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo, enemy_lo,
+                       own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
+                       healer, max_cooldown, frame, flags, layout, episode_limit, out):
+    """Write the global state into ``out`` (float32 (B, state_size)).
+
+    ``frame`` is (centre x, centre y, map width, map height); ``flags`` follow STATE_FLAGS; ``layout`` is
+    (ally_state_feats, enemy_state_feats, state_enemy_offset, state_action_offset, n_actions).
+    """
+    n_battles, size = out.shape
+    n, m = own_health_max.shape[0], enemy_health_max.shape[0]
+    bits = own_onehot.shape[1]
+    cx, cy, width, height = frame[0], frame[1], frame[2], frame[3]
+    ally_feats, enemy_feats, enemy_offset, action_offset, n_actions = layout[0], layout[1], layout[2], layout[3], \
+        layout[4]
+    for b in range(n_battles):
+        o = out[b]
+        for c in range(size):
+            o[c] = 0.0
+        for i in range(n):
+            u = own_lo + i
+            if not alive[b, u]:
+                continue
+            c = i * ally_feats
+            o[c] = health[b, u] / own_health_max[i]
+            # Medivacs report energy, every other unit its weapon cooldown (loops until it may fire again).
+            timer = energy[b, u] if healer[i] else max(cooldown[b, u], 0.0)
+            o[c + 1] = timer / max_cooldown[i]
+            o[c + 2] = (x[b, u] - cx) / width
+            o[c + 3] = (y[b, u] - cy) / height
+            c += 4
+            if flags[_S_SHIELD_ALLY]:
+                o[c] = shield[b, u] / own_shield_max[i]
+                c += 1
+            for t in range(bits):
+                o[c + t] = own_onehot[i, t]
+        for j in range(m):
+            e = enemy_lo + j
+            if not alive[b, e]:
+                continue
+            c = enemy_offset + j * enemy_feats
+            o[c] = health[b, e] / enemy_health_max[j]
+            o[c + 1] = (x[b, e] - cx) / width
+            o[c + 2] = (y[b, e] - cy) / height
+            c += 3
+            if flags[_S_SHIELD_ENEMY]:
+                o[c] = shield[b, e] / enemy_shield_max[j]
+                c += 1
+            for t in range(bits):
+                o[c + t] = enemy_onehot[j, t]
+        c = action_offset
+        if flags[_S_LAST_ACTION]:
+            for i in range(n):
+                a = last_action[b, i]
+                if a >= 0:
+                    o[c + i * n_actions + a] = 1.0
+            c += n * n_actions
+        if flags[_S_TIMESTEP]:
+            o[c] = episode_step[b] / episode_limit
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Outcome and rewards.
+
+
+@inline
+def _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue):
+    n_units = alive.shape[1]
+    red_left = blue_left = False
+    dead = 0
+    for u in range(n_red):
+        dead += not alive[b, u]
+        red_left |= alive[b, u] and fighter[u]
+    dead_red[b] = dead
+    dead = 0
+    for u in range(n_red, n_units):
+        dead += not alive[b, u]
+        blue_left |= alive[b, u] and fighter[u]
+    dead_blue[b] = dead
+    if red_left:
+        outcome[b] = RUNNING if blue_left else RED_WON
+    else:
+        outcome[b] = BLUE_WON if blue_left else DRAW
+
+
+@inline
+def _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward):
+    death_value, win, defeat, negative_scale = values[0], values[1], values[2], values[3]
+    sparse, only_positive = flags[0], flags[1]
+    lost_red = lost_blue = 0.0
+    died_red = died_blue = 0
+    for u in range(alive.shape[1]):
+        if not prev_alive[b, u]:
+            continue
+        live = alive[b, u]
+        lost = prev_hs[b, u] - (health[b, u] + shield[b, u] if live else 0.0)  # a dying unit's last health counts
+        if u < n_red:
+            lost_red += lost
+            died_red += not live
+        else:
+            lost_blue += lost
+            died_blue += not live
+    for s in range(2):
+        won = outcome[b] == (RED_WON if s == 0 else BLUE_WON)
+        beaten = outcome[b] == (BLUE_WON if s == 0 else RED_WON)
+        if sparse:
+            r = 1.0 if won else (-1.0 if beaten else 0.0)
+        else:
+            lost_enemy, lost_own = (lost_blue, lost_red) if s == 0 else (lost_red, lost_blue)
+            died_enemy, died_own = (died_blue, died_red) if s == 0 else (died_red, died_blue)
+            if only_positive:
+                r = max(0.0, lost_enemy + death_value * died_enemy)
+            else:
+                r = (lost_enemy + (death_value * died_enemy - death_value * negative_scale * died_own)
+                     - negative_scale * lost_own)
+            r += won * win + beaten * defeat
+        reward[b, s] = r / divisor[s]
+
+
+@kernel
+def outcomes_batch(alive, fighter, n_red, outcome, dead_red, dead_blue):
+    """Outcome (int8 (B,): RUNNING, RED_WON, BLUE_WON or DRAW) and dead units per side (int64 (B,)) of each battle.
+
+    A side is beaten when none of its ``fighter`` units is alive (SMAC's "only medivacs left" rule, for both sides);
+    both beaten at once is a draw.
+    """
+    for b in range(alive.shape[0]):
+        _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue)
+
+
+@kernel
+def rewards_batch(prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward):
+    """Both sides' rewards (float32 (B, 2): [red, blue]) for the step from (``prev_hs``, ``prev_alive``), health plus
+    shield and alive flags before the step, to the current arrays; ``outcome`` as from ``outcomes_batch``.
+
+    ``values`` is (death value, win, defeat, negative scale); ``flags`` follow REWARD_FLAGS; ``divisor`` scales each
+    side's reward.
+    """
+    for b in range(alive.shape[0]):
+        _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward)
+
+
+@kernel
+def finish_step(prev_hs, prev_alive, alive, health, shield, fighter, n_red, active, restarted, red_actions,
+                blue_actions, last_red, last_blue, episode_step, episode_limit, values, flags, divisor, done,
+                outcome, reward, terminated, truncated, dead_red, dead_blue):
+    """The two-player core's bookkeeping after the engine stepped the ``active`` battles, in one pass.
+
+    Counts the step and records the actions (``blue_actions`` with zero rows: a script played blue), then writes
+    outcome, rewards and dead counts as ``outcomes_batch`` and ``rewards_batch`` do, ``terminated`` (a result, or a
+    ``restarted`` game), ``truncated`` (``episode_limit`` reached without one) and marks ended battles ``done``.
+    Battles not active, and restarted ones, get RUNNING and zero reward.
+    """
+    for b in range(alive.shape[0]):
+        _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue)
+        terminated[b] = truncated[b] = False
+        if not active[b]:
+            outcome[b] = RUNNING
+            reward[b, 0] = reward[b, 1] = 0.0
+            continue
+        episode_step[b] += 1
+        for i in range(red_actions.shape[1]):
+            last_red[b, i] = red_actions[b, i]
+        if blue_actions.shape[0] > 0:
+            for i in range(blue_actions.shape[1]):
+                last_blue[b, i] = blue_actions[b, i]
+        if restarted[b]:  # the backend lost the game: the episode ends without a result
+            outcome[b] = RUNNING
+            reward[b, 0] = reward[b, 1] = 0.0
+            terminated[b] = done[b] = True
+            continue
+        _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward)
+        terminated[b] = outcome[b] != RUNNING
+        truncated[b] = not terminated[b] and episode_step[b] >= episode_limit
+        done[b] |= terminated[b] or truncated[b]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Actions.
+
+
+@kernel
+def first_invalid_action(actions, avail, active):
+    """Flat index (battle * n + agent) of the first illegal action in an active battle, or -1."""
+    n_battles, n, n_actions = avail.shape
+    for b in range(n_battles):
+        if not active[b]:
+            continue
+        for i in range(n):
+            a = actions[b, i]
+            if a < 0 or a >= n_actions or not avail[b, i, a]:
+                return b * n + i
+    return -1
+
+
+@kernel
+def decode_actions_batch(actions, active, x, y, own_lo, enemy_lo, healer, move_amount, kind, target, cmd_x, cmd_y):
+    """Write the engine commands of validated SMAC actions (B, n) into the command arrays for active battles."""
+    n_battles, n = actions.shape
+    for b in range(n_battles):
+        if not active[b]:
+            continue
+        for i in range(n):
+            u = own_lo + i
+            a = actions[b, i]
+            k, t = CMD_NOOP, NO_UNIT
+            px, py = x[b, u], y[b, u]
+            if a == 1:
+                k = CMD_STOP
+            elif 2 <= a < N_ACTIONS_NO_ATTACK:
+                k = CMD_MOVE
+                px += _MOVE_DX[a - 2] * move_amount
+                py += _MOVE_DY[a - 2] * move_amount
+            elif a >= N_ACTIONS_NO_ATTACK:
+                j = a - N_ACTIONS_NO_ATTACK
+                if healer[i]:
+                    k, t = CMD_HEAL, own_lo + j
+                else:
+                    k, t = CMD_ATTACK, enemy_lo + j
+            kind[b, u] = k
+            target[b, u] = t
+            cmd_x[b, u] = px
+            cmd_y[b, u] = py
