@@ -201,11 +201,12 @@ class TwoPlayerCore:
         if self._error is not None and len(np.unique(rows)) < self.batch_size:
             raise RuntimeError(f"the opponent failed ({self._error!r}); reset() every battle before going on")
         restart, engine_seeds = self._seed(rows, seed)
-        if restart.all():
+        if engine_seeds is None:  # every simulator stream goes on, like the scripts' generators
+            self.backend.reset(None if battles is None else rows)
+        elif restart.all():
             self.backend.reset(None if battles is None else rows, seeds=engine_seeds)
-        else:  # the simulator streams of the other battles go on, like the scripts' generators
-            if restart.any():
-                self.backend.reset(rows[restart], seeds=engine_seeds[restart])
+        else:
+            self.backend.reset(rows[restart], seeds=engine_seeds[restart])
             self.backend.reset(rows[~restart])
         self.episode_step[rows] = 0
         self.done[rows] = False
@@ -265,16 +266,15 @@ class TwoPlayerCore:
         terminated, truncated = np.empty(size, bool), np.empty(size, bool)
         dead_red, dead_blue = np.empty(size, np.int64), np.empty(size, np.int64)
         rewards = self.rewards
-        finish_step(prev_hs, prev_alive, state.alive, state.health, state.shield, self._fighter, self.n_red, active,
-                    restarted, red, self._no_actions if blue is None else blue, self.last_action[RED],
-                    self.last_action[BLUE], self.episode_step, self.spec.episode_limit, rewards.kernel_values,
-                    rewards.kernel_flags, rewards.divisor, self.done, outcome, reward, terminated, truncated,
-                    dead_red, dead_blue)
-        ended = terminated | truncated
-        if ended.any():
+        n_ended = finish_step(prev_hs, prev_alive, state.alive, state.health, state.shield, self._fighter, self.n_red,
+                              active, restarted, red, self._no_actions if blue is None else blue,
+                              self.last_action[RED], self.last_action[BLUE], self.episode_step,
+                              self.spec.episode_limit, rewards.kernel_values, rewards.kernel_flags, rewards.divisor,
+                              self.done, outcome, reward, terminated, truncated, dead_red, dead_blue)
+        if n_ended:
+            ended = terminated | truncated
             self._stats.record(self._name_ids[ended], outcome[ended], truncated[ended])
-        names = list(self._names)
-        return StepResult(reward, terminated, truncated, outcome, dead_red, dead_blue, active, names,
+        return StepResult(reward, terminated, truncated, outcome, dead_red, dead_blue, active, list(self._names),
                           restarted & active)
 
     # -----------------------------------------------------------------------------------------------------------
@@ -356,7 +356,7 @@ class TwoPlayerCore:
             raise ValueError(f"battle indices must lie in 0..{self.batch_size - 1}, got {battles!r}")
         return rows
 
-    def _seed(self, rows: np.ndarray, seed: int | Sequence[int] | None) -> tuple[np.ndarray, np.ndarray]:
+    def _seed(self, rows: np.ndarray, seed: int | Sequence[int] | None) -> tuple[np.ndarray, np.ndarray | None]:
         """Seed the scripts' generators of ``rows``. Returns which rows' simulator streams restart, and their seeds.
 
         The simulator's randomness (weapon delays) has a stream of its own per battle, so that the scripts' draws do
@@ -367,7 +367,8 @@ class TwoPlayerCore:
             restart = np.array([self.rngs[b] is None for b in rows], dtype=bool)
             for b in rows[restart]:
                 self.rngs[b] = np.random.default_rng()
-            return restart, np.random.default_rng().integers(0, 2**63, size=len(rows))
+            fresh = np.random.default_rng().integers(0, 2**63, size=len(rows)) if restart.any() else None
+            return restart, fresh
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + int(b) for b in rows]
         else:

@@ -391,8 +391,9 @@ def finish_step(prev_hs, prev_alive, alive, health, shield, fighter, n_red, acti
     Counts the step and records the actions (``blue_actions`` with zero rows: a script played blue), then writes
     outcome, rewards and dead counts as ``outcomes_batch`` and ``rewards_batch`` do, ``terminated`` (a result, or a
     ``restarted`` game), ``truncated`` (``episode_limit`` reached without one) and marks ended battles ``done``.
-    Battles not active, and restarted ones, get RUNNING and zero reward.
+    Battles not active, and restarted ones, get RUNNING and zero reward. Returns the number of battles that ended.
     """
+    ended = 0
     for b in range(alive.shape[0]):
         _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue)
         terminated[b] = truncated[b] = False
@@ -410,11 +411,15 @@ def finish_step(prev_hs, prev_alive, alive, health, shield, fighter, n_red, acti
             outcome[b] = RUNNING
             reward[b, 0] = reward[b, 1] = 0.0
             terminated[b] = done[b] = True
+            ended += 1
             continue
         _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward)
         terminated[b] = outcome[b] != RUNNING
         truncated[b] = not terminated[b] and episode_step[b] >= episode_limit
-        done[b] |= terminated[b] or truncated[b]
+        if terminated[b] or truncated[b]:
+            done[b] = True
+            ended += 1
+    return ended
 
 
 # ---------------------------------------------------------------------------------------------------------------
