@@ -51,11 +51,14 @@ def action_name(action: int, healer: bool = False) -> str:
     return f"heal ally {j}" if healer else f"attack enemy {j}"
 
 
-def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray | None = None) -> np.ndarray:
-    """Available actions of every agent of ``feats``'s side: bool ``(B, n_agents, n_actions)``."""
+def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray | None = None,
+                      rows: np.ndarray | None = None) -> np.ndarray:
+    """Available actions of every agent of ``feats``'s side: bool ``(B, n_agents, n_actions)`` (of battles ``rows``
+    only, when given: ``(len(rows), n_agents, n_actions)``)."""
+    rows = feats.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
     if out is None:
-        out = np.empty((state.alive.shape[0], feats.n_agents, feats.n_actions), dtype=bool)
-    available_actions_batch(state.x, state.y, state.alive, feats.own.start, feats.enemy.start, feats.own_healer,
+        out = np.empty((len(rows), feats.n_agents, feats.n_actions), dtype=bool)
+    available_actions_batch(rows, state.x, state.y, state.alive, feats.own.start, feats.enemy.start, feats.own_healer,
                             feats.heal_target_ok, feats.pathable, feats.move_amount / 2.0, feats.n_heal_targets, out)
     return out
 

@@ -74,22 +74,24 @@ def _cell_value(grid, fx, fy, outside):
 
 
 @kernel
-def available_actions_batch(x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
+def available_actions_batch(rows, x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
                             n_heal_targets, out):
-    """Write every agent's available actions into ``out`` (bool (B, n, n_actions)); see smac_hard_gym.actions."""
-    n_battles, n, n_actions = out.shape
-    m = n_actions - N_ACTIONS_NO_ATTACK
-    for b in range(n_battles):
+    """Write the available actions of every agent of battles ``rows`` into ``out`` (bool (len(rows), n,
+    n_actions)); see smac_hard_gym.actions."""
+    n = out.shape[1]
+    m = out.shape[2] - N_ACTIONS_NO_ATTACK
+    for k in range(rows.shape[0]):
+        b = rows[k]
         for i in range(n):
             u = own_lo + i
             live = alive[b, u]
-            row = out[b, i]
+            row = out[k, i]
             row[0] = not live
             row[1] = live
             xi, yi = x[b, u], y[b, u]
-            for k in range(4):
-                row[2 + k] = live and _cell_value(pathable, xi + _MOVE_DX[k] * half_move,
-                                                  yi + _MOVE_DY[k] * half_move, False)
+            for d in range(4):
+                row[2 + d] = live and _cell_value(pathable, xi + _MOVE_DX[d] * half_move,
+                                                  yi + _MOVE_DY[d] * half_move, False)
             if healer[i]:
                 for j in range(m):
                     row[N_ACTIONS_NO_ATTACK + j] = False
@@ -109,7 +111,7 @@ def available_actions_batch(x, y, alive, own_lo, enemy_lo, healer, heal_target_o
 
 
 @inline
-def _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+def _observe_battle(k, b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                     own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
                     flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
     n, obs_size = out.shape[1], out.shape[2]
@@ -118,7 +120,7 @@ def _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_
     enemy_offset, ally_offset, own_offset, enemy_feats, ally_feats = layout[0], layout[1], layout[2], layout[3], \
         layout[4]
     for i in range(n):
-        o = out[b, i]
+        o = out[k, i]
         for c in range(obs_size):
             o[c] = 0.0
         if flags[_O_TIMESTEP]:
@@ -129,18 +131,18 @@ def _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_
         xi, yi = x[b, u], y[b, u]
 
         # Move block: the four move actions, then the probed pathing and heights.
-        for k in range(4):
-            o[k] = avail[b, i, 2 + k]
+        for d in range(4):
+            o[d] = avail[k, i, 2 + d]
         col = 4
         if flags[_O_PATHING] or flags[_O_HEIGHT]:
             cx0, cy0 = int(xi), int(yi)
             if flags[_O_PATHING]:
-                for k in range(8):
-                    o[col + k] = _cell_value(pathable, cx0 + probe_dx[k], cy0 + probe_dy[k], True)
+                for p in range(8):
+                    o[col + p] = _cell_value(pathable, cx0 + probe_dx[p], cy0 + probe_dy[p], True)
                 col += 8
             if flags[_O_HEIGHT]:
-                for k in range(9):
-                    o[col + k] = _cell_value(heights, cx0 + probe_dx[k], cy0 + probe_dy[k], np.float32(1.0))
+                for p in range(9):
+                    o[col + p] = _cell_value(heights, cx0 + probe_dx[p], cy0 + probe_dy[p], np.float32(1.0))
 
         # Enemies within sight.
         for j in range(m):
@@ -152,7 +154,7 @@ def _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_
             if not d < SIGHT_RANGE:
                 continue
             c = enemy_offset + j * enemy_feats
-            o[c] = avail[b, i, N_ACTIONS_NO_ATTACK + j]
+            o[c] = avail[k, i, N_ACTIONS_NO_ATTACK + j]
             o[c + 1] = d * _SIGHT_SCALE
             o[c + 2] = dx * _SIGHT_SCALE
             o[c + 3] = dy * _SIGHT_SCALE
@@ -167,12 +169,12 @@ def _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_
                 o[c + t] = enemy_onehot[j, t]
 
         # The other agents of this side, in id order.
-        k = 0
+        rank = 0  # the ally's row among the others
         for j in range(n):
             if j == i:
                 continue
-            c = ally_offset + k * ally_feats
-            k += 1
+            c = ally_offset + rank * ally_feats
+            rank += 1
             v = own_lo + j
             if not alive[b, v]:
                 continue
@@ -212,26 +214,27 @@ def _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def observations_batch(x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+def observations_batch(rows, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
                        flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
-    """Write every agent's observation into ``out`` (float32 (B, n, obs_size)), battles in parallel.
+    """Write the observations of every agent of battles ``rows`` into ``out`` (float32 (len(rows), n,
+    obs_size)), battles in parallel; ``avail`` is aligned with ``out``.
 
     ``flags`` follow OBS_FLAGS; ``layout`` is (enemy_offset, ally_offset, own_offset, enemy_feats, ally_feats).
     """
-    for b in prange(out.shape[0]):
-        _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+    for k in prange(rows.shape[0]):
+        _observe_battle(k, rows[k], x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                         own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
                         enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out)
 
 
 @kernel
-def observations_batch_serial(x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+def observations_batch_serial(rows, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                               own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
                               enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
     """``observations_batch`` on the calling thread (small batches: waking the pool costs more than it saves)."""
-    for b in range(out.shape[0]):
-        _observe_battle(b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+    for k in range(rows.shape[0]):
+        _observe_battle(k, rows[k], x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                         own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
                         enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out)
 
@@ -241,22 +244,23 @@ def observations_batch_serial(x, y, alive, health, shield, avail, last_action, e
 
 
 @kernel
-def global_state_batch(x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo, enemy_lo,
+def global_state_batch(rows, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo, enemy_lo,
                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
                        healer, max_cooldown, frame, flags, layout, episode_limit, out):
-    """Write the global state into ``out`` (float32 (B, state_size)).
+    """Write the global state of battles ``rows`` into ``out`` (float32 (len(rows), state_size)).
 
     ``frame`` is (centre x, centre y, map width, map height); ``flags`` follow STATE_FLAGS; ``layout`` is
     (ally_state_feats, enemy_state_feats, state_enemy_offset, state_action_offset, n_actions).
     """
-    n_battles, size = out.shape
+    size = out.shape[1]
     n, m = own_health_max.shape[0], enemy_health_max.shape[0]
     bits = own_onehot.shape[1]
     cx, cy, width, height = frame[0], frame[1], frame[2], frame[3]
     ally_feats, enemy_feats, enemy_offset, action_offset, n_actions = layout[0], layout[1], layout[2], layout[3], \
         layout[4]
-    for b in range(n_battles):
-        o = out[b]
+    for k in range(rows.shape[0]):
+        b = rows[k]
+        o = out[k]
         for c in range(size):
             o[c] = 0.0
         for i in range(n):

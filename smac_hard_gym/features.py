@@ -296,6 +296,7 @@ class SideFeatures:
                                        self.state_action_offset, self.n_actions], dtype=np.int64)
         self._frame = np.array([*self.center, *self.max_distance], dtype=np.float64)
         self.heal_target_ok = ~self.own_healer[:self.n_heal_targets]
+        self._all_rows = np.arange(0, dtype=np.int64)
         # Enough (battle, agent, unit) triples per observation call to pay for waking the thread pool.
         self._parallel_obs_from = max(1, PARALLEL_MIN_TRIPLES // (n * (n + self.n_enemies)))
 
@@ -350,45 +351,56 @@ class SideFeatures:
                         np.sqrt(edx * edx + edy * edy), adx, ady, adist)
 
     def observations(self, state: BattleState, avail: np.ndarray, last_action: np.ndarray,
-                     episode_step: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+                     episode_step: np.ndarray, out: np.ndarray | None = None,
+                     rows: np.ndarray | None = None) -> np.ndarray:
         """Per-agent observations ``(B, n_agents, obs_size)`` float32.
 
         ``avail`` is this side's available actions ``(B, n, n_actions)``, ``last_action`` its previous actions
-        ``(B, n)`` (-1: none), ``episode_step`` the env steps since each battle's reset ``(B,)``.
+        ``(B, n)`` (-1: none), ``episode_step`` the env steps since each battle's reset ``(B,)``. With ``rows``
+        (battle indices) only those battles are encoded: ``avail`` and the result then have ``len(rows)`` rows.
         """
-        batch = state.alive.shape[0]
+        rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         if out is None:
-            out = np.empty((batch, self.n_agents, self.obs_size), dtype=np.float32)
-        run = fk.observations_batch if batch >= self._parallel_obs_from else fk.observations_batch_serial
-        run(state.x, state.y, state.alive, state.health, state.shield, avail, last_action, episode_step,
+            out = np.empty((len(rows), self.n_agents, self.obs_size), dtype=np.float32)
+        run = fk.observations_batch if len(rows) >= self._parallel_obs_from else fk.observations_batch_serial
+        run(rows, state.x, state.y, state.alive, state.health, state.shield, avail, last_action, episode_step,
             self.own.start, self.enemy.start, self.own_health_max, self.own_shield_max, self.enemy_health_max,
             self.enemy_shield_max, self.own_onehot, self.enemy_onehot, self._obs_flags, self.pathable,
             self.terrain_height, self._probe_dx, self._probe_dy, self._obs_layout, float(self.episode_limit), out)
         return out
 
     def global_state(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
-                     obs: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
-        """The global state ``(B, state_size)`` float32 from this side's point of view.
+                     obs: np.ndarray | None = None, out: np.ndarray | None = None,
+                     rows: np.ndarray | None = None) -> np.ndarray:
+        """The global state ``(B, state_size)`` float32 from this side's point of view (of battles ``rows`` only,
+        when given, as in :meth:`observations`).
 
         With ``obs_instead_of_state`` the state is the concatenation of the agents' observations ``obs``.
         """
-        batch = state.alive.shape[0]
+        rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         if self.options.obs_instead_of_state:
             if obs is None:
                 raise ValueError("obs_instead_of_state: pass this side's observations as obs=")
-            flat = obs.reshape(batch, self.n_agents * self.obs_size)
+            flat = obs.reshape(len(rows), self.n_agents * self.obs_size)
             if out is None:
                 return flat.astype(np.float32, copy=True)
             out[:] = flat
             return out
         if out is None:
-            out = np.empty((batch, self.state_size), dtype=np.float32)
-        fk.global_state_batch(state.x, state.y, state.alive, state.health, state.shield, state.energy,
+            out = np.empty((len(rows), self.state_size), dtype=np.float32)
+        fk.global_state_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
                               state.cooldown, last_action, episode_step, self.own.start, self.enemy.start,
                               self.own_health_max, self.own_shield_max, self.enemy_health_max, self.enemy_shield_max,
                               self.own_onehot, self.enemy_onehot, self.own_healer, self.own_max_cooldown, self._frame,
                               self._state_flags, self._state_layout, float(self.episode_limit), out)
         return out
+
+    def all_rows(self, state: BattleState) -> np.ndarray:
+        """Indices of every battle of ``state`` (cached per batch size)."""
+        batch = state.alive.shape[0]
+        if self._all_rows.shape[0] != batch:
+            self._all_rows = np.arange(batch, dtype=np.int64)
+        return self._all_rows
 
     def visibility(self, state: BattleState, geo: Geometry | None = None) -> np.ndarray:
         """SMAC's visibility matrix ``(B, n_agents, n_agents + n_enemies)`` bool: alive units within sight of an

@@ -105,13 +105,12 @@ class JointView:
 
     def _rows(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         core, feats = self.core, self.core.features[RED]
-        state = type(core.state)(*(field[rows] for field in core.state))
-        avail = available_actions(feats, state)
-        last_action, steps = core.last_action[RED][rows], core.episode_step[rows]
-        obs = feats.observations(state, avail, last_action, steps)
+        state, last_action, steps = core.state, core.last_action[RED], core.episode_step
+        avail = available_actions(feats, state, rows=rows)
+        obs = feats.observations(state, avail, last_action, steps, rows=rows)
         global_state = None
         if self.obs_mode != "joint":
-            global_state = feats.global_state(state, last_action, steps,
+            global_state = feats.global_state(state, last_action, steps, rows=rows,
                                               obs=obs if core.options.obs_instead_of_state else None)
         return obs, avail, global_state
 

@@ -382,3 +382,22 @@ def test_options_are_validated():
     with pytest.raises(TypeError, match=r"unknown SMAC option\(s\) \['obs_everything'\]"):
         SmacOptions.from_kwargs(obs_everything=True)
     assert SmacOptions(obs_all_health=True, obs_own_health=False).own_health
+
+
+def test_encoding_chosen_battles_matches_their_rows_of_the_batch():
+    # A vector env encodes terminal observations of the ended battles only: same values as their batch rows.
+    engine = BattleEngine("2s3z", batch_size=5)
+    rng = np.random.default_rng(3)
+    engine.state.x[:] += rng.uniform(-4, 4, engine.state.x.shape)
+    engine.state.alive[1, 2] = engine.state.alive[3, 6] = False
+    feats = SideFeatures(engine.spec, RED, SmacOptions(obs_last_action=True, obs_timestep_number=True))
+    last = rng.integers(-1, feats.n_actions, (5, feats.n_agents))
+    steps = rng.integers(0, 100, 5)
+    avail = available_actions(feats, engine.state)
+    obs = feats.observations(engine.state, avail, last, steps)
+    state = feats.global_state(engine.state, last, steps)
+    rows = np.array([3, 1])
+    some_avail = available_actions(feats, engine.state, rows=rows)
+    np.testing.assert_array_equal(some_avail, avail[rows])
+    np.testing.assert_array_equal(feats.observations(engine.state, some_avail, last, steps, rows=rows), obs[rows])
+    np.testing.assert_array_equal(feats.global_state(engine.state, last, steps, rows=rows), state[rows])
