@@ -19,8 +19,11 @@ def test_wheel_contains_maps_scripts_and_subpackages(tmp_path):
         assert f"smac_hard_gym/maps/data/{map_file.name}" in names
     for script in (ROOT / "opponents").glob("*.py"):
         assert f"smac_hard_gym/opponents/{script.name}" in names
-    for package in ("engine", "commands", "render", "sc2", "wrappers"):
-        assert f"smac_hard_gym/{package}/__init__.py" in names, package
+    # Every subpackage of the source tree, and every module in it (a package missing from pyproject's list would
+    # be left out silently).
+    for module in (ROOT / "smac_hard_gym").rglob("*.py"):
+        assert f"smac_hard_gym/{module.relative_to(ROOT / 'smac_hard_gym').as_posix()}" in names, module
+    assert "smac_hard_gym/wrappers/__init__.py" in names
     # Nothing named maps/opponents/wrappers lands at the top of site-packages.
     assert not any(n.split("/")[0] in ("maps", "opponents", "wrappers", "tests", "examples") for n in names)
     assert any(n.endswith("entry_points.txt") for n in names)
