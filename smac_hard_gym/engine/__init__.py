@@ -19,6 +19,7 @@ import numpy as np
 if os.environ.get("NUMBA_THREADING_LAYER", "workqueue") == "workqueue":
     numba.config.THREADING_LAYER = "workqueue"
 
+from smac_hard_gym.engine.batch_ops import count_alive, reset_battles
 from smac_hard_gym.engine.kernels import step_batch, step_batch_serial
 from smac_hard_gym.engine.scenario import Layout, build_layout
 from smac_hard_gym.engine.state import (
@@ -31,7 +32,6 @@ from smac_hard_gym.engine.state import (
     CMD_NOOP,
     CMD_STOP,
     NO_UNIT,
-    ORDER_IDLE,
     RED,
     BattleState,
     Commands,
@@ -85,6 +85,12 @@ class BattleEngine:
         self.n_blue = self.layout.n_blue
         self.n_units = self.n_red + self.n_blue
         self.state: BattleState = allocate_state(self.batch_size, self.n_units)
+        # The kernels read each slot's unit table row directly (a slot's type is fixed by the layout).
+        self._slot_stats = np.ascontiguousarray(STATS[self.layout.utype])
+        # Separation's sweep: each battle's slots in x order (kept between steps, so nearly sorted) and sort keys.
+        self._by_x = np.tile(np.arange(self.n_units, dtype=np.int32), (self.batch_size, 1))
+        self._sort_key = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
+        self._next_battle = np.zeros(1, dtype=np.int64)  # the parallel kernel's shared work counter
         self.commands = Commands.empty(self.batch_size, self.n_units)
         self._all_active = np.ones(self.batch_size, dtype=np.bool_)
         lo, hi = (0.0, 0.0) if cooldown_jitter is None else (float(cooldown_jitter[0]), float(cooldown_jitter[1]))
@@ -111,30 +117,21 @@ class BattleEngine:
 
         ``seeds`` (one int per reset battle) restarts their random streams; without it each battle's stream goes on.
         """
-        rows = slice(None) if mask is None else np.flatnonzero(np.asarray(mask, dtype=bool))
+        if mask is None:
+            rows = np.arange(self.batch_size)
+        else:
+            mask = np.asarray(mask, dtype=bool)
+            if mask.shape != (self.batch_size,):
+                raise ValueError(f"mask must be one bool per battle, shape ({self.batch_size},); "
+                                 f"got shape {mask.shape}")
+            rows = np.flatnonzero(mask)
         st, lay = self.state, self.layout
         if seeds is not None:
-            idx = np.arange(self.batch_size)[rows]
             seeds = np.atleast_1d(np.asarray(seeds))
-            if seeds.shape != idx.shape:
-                raise ValueError(f"seeds must give one int per reset battle ({len(idx)}), got shape {seeds.shape}")
-            st.rng[idx] = [_splitmix64(int(s)) for s in seeds]
-        st.utype[rows] = lay.utype
-        st.side[rows] = lay.side
-        st.alive[rows] = True
-        st.x[rows] = lay.x
-        st.y[rows] = lay.y
-        st.health[rows] = lay.health
-        st.shield[rows] = lay.shield
-        st.energy[rows] = lay.energy
-        for name in ("cooldown", "shield_wait", "order_x", "order_y"):
-            getattr(st, name)[rows] = 0.0
-        st.order[rows] = ORDER_IDLE
-        for name in ("order_target", "target", "attacker", "fired_at"):
-            getattr(st, name)[rows] = NO_UNIT
-        st.burst[rows] = False
-        st.alive_at_loop[rows] = True
-        st.loop[rows] = 0
+            if seeds.shape != rows.shape:
+                raise ValueError(f"seeds must give one int per reset battle ({len(rows)}), got shape {seeds.shape}")
+            st.rng[rows] = [_splitmix64(int(s)) for s in seeds]
+        reset_battles(st, rows, lay.utype, lay.side, lay.x, lay.y, lay.health, lay.shield, lay.energy)
 
     def step(self, commands: Commands | None = None, active: np.ndarray | None = None,
              n_loops: int | None = None) -> None:
@@ -145,18 +142,27 @@ class BattleEngine:
         cmd = self.commands if commands is None else commands
         act = self._all_active if active is None else np.ascontiguousarray(active, dtype=np.bool_)
         t = self.terrain
-        kernel = step_batch if self.batch_size >= PARALLEL_MIN_BATCH else step_batch_serial
-        kernel(self.state, cmd.kind, cmd.target, cmd.x, cmd.y, STATS, t.walk, t.next_hop, t.los, t.open_field,
-               self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter)
+        args = (self.state, cmd.kind, cmd.target, cmd.x, cmd.y, self._slot_stats, t.walk, t.next_hop, t.los,
+                t.open_field, self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter,
+                self._by_x, self._sort_key)
+        if self.batch_size >= PARALLEL_MIN_BATCH:
+            step_batch(*args, numba.get_num_threads(), self._next_battle)
+        else:
+            step_batch_serial(*args)
 
     def alive_counts(self) -> tuple[np.ndarray, np.ndarray]:
         """Alive units per battle: (red, blue), each shaped (B,)."""
-        alive = self.state.alive
-        return alive[:, : self.n_red].sum(axis=1), alive[:, self.n_red:].sum(axis=1)
+        return count_alive(self.state.alive, self.n_red)
 
     def place(self, battle: int, slot: int, **values: float) -> None:
-        """Set fields of one unit by hand (tests, constructed scenarios): x, y, health, shield, energy, alive...."""
+        """Set fields of one unit by hand (tests, constructed scenarios): x, y, health, shield, energy, alive....
+
+        A slot's unit type is fixed by the map's layout: build a map with the units you need instead.
+        """
         for name, value in values.items():
             if name not in BattleState._fields:
                 raise KeyError(f"unknown state field {name!r}; fields: {', '.join(BattleState._fields)}")
+            if name == "utype":
+                raise ValueError(f"a slot's unit type is fixed by the map's layout (slot {slot} is "
+                                 f"{UNITS[self.layout.utype[slot]].name!r}); use a map with the units you need")
             getattr(self.state, name)[battle, slot] = value

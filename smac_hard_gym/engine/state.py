@@ -26,7 +26,7 @@ NO_UNIT = -1
 class BattleState(NamedTuple):
     """State of B battles (arrays (B, U) unless noted). Health and shields are current values."""
 
-    utype: np.ndarray  # int32: row of the unit table
+    utype: np.ndarray  # int32: row of the unit table (fixed per slot by the map's layout)
     side: np.ndarray  # int8: RED or BLUE
     alive: np.ndarray  # bool
     x: np.ndarray  # float64 world position

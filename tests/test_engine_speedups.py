@@ -1,0 +1,209 @@
+"""The engine's speed mechanisms against slow references: the x-sorted sweep that finds overlapping pairs, the
+dynamic hand-out of battles to threads, and the batch bookkeeping kernels.
+
+The separation reference is the mechanic as the engine documents it, written here from scratch for an open map:
+two alive units of the same plane whose circles overlap by ``depth`` move apart along the line between their
+centres, half each, or all of it on the movable one when the other holds or is rooted; dead units take no part.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from engine_helpers import engine_with
+from numba import njit, prange
+
+import smac_hard_gym.engine as engine_module
+from smac_hard_gym.engine import BattleEngine, Commands
+from smac_hard_gym.engine.batch_ops import count_alive
+from smac_hard_gym.engine.kernels import _separation, _sort_by_x
+from smac_hard_gym.engine.scheduling import fetch_add
+from smac_hard_gym.engine.state import CMD_ATTACK, CMD_MOVE, ORDER_HOLD, ORDER_IDLE, BattleState
+from smac_hard_gym.units import STATS, S, unit_index
+
+RADIUS = {"marine": 0.375, "zealot": 0.5, "stalker": 0.625, "colossus": 1.0, "medivac": 0.75, "spine_crawler": 1.125}
+PLANE = {"marine": 0, "zealot": 0, "stalker": 0, "spine_crawler": 0, "colossus": 1, "medivac": 2}  # ground, cliff, air
+ROOTED = {"spine_crawler"}
+
+
+def test_sort_by_x_orders_slots_by_position_then_slot():
+    rng = np.random.default_rng(0)
+    for n in (1, 2, 6, 57):
+        x = rng.choice([1.0, 2.5, 2.5, 3.0, 7.25], size=n) + rng.choice([0.0, 0.5], size=n)  # many ties
+        by_x = rng.permutation(n).astype(np.int32)
+        key = np.zeros(n)
+        _sort_by_x(by_x, key, x)
+        expected = np.lexsort((np.arange(n), x))
+        assert by_x.tolist() == expected.tolist()
+        assert key.tolist() == x[expected].tolist()
+
+
+def _reference_pass(names, alive, hold, x, y):
+    """One separation pass by the documented rule (valid when no unit overlaps two others: then order is moot)."""
+    x, y = x.copy(), y.copy()
+    deepest = 0.0
+    n = len(names)
+    for i in range(n):
+        for j in range(i + 1, n):
+            if not (alive[i] and alive[j]) or PLANE[names[i]] != PLANE[names[j]]:
+                continue
+            dist = math.hypot(x[j] - x[i], y[j] - y[i])
+            depth = RADIUS[names[i]] + RADIUS[names[j]] - dist
+            free_i = not hold[i] and names[i] not in ROOTED
+            free_j = not hold[j] and names[j] not in ROOTED
+            if depth <= 0 or not (free_i or free_j):
+                continue
+            ux, uy = (x[j] - x[i]) / dist, (y[j] - y[i]) / dist
+            share_i = depth * (0.5 if free_j else 1.0) if free_i else 0.0
+            share_j = depth - share_i
+            x[i], y[i] = x[i] - ux * share_i, y[i] - uy * share_i
+            x[j], y[j] = x[j] + ux * share_j, y[j] + uy * share_j
+            deepest = max(deepest, depth)
+    return x, y, deepest
+
+
+def _scattered_pairs(rng, n_groups):
+    """Pairs and loners on a grid of well-separated sites; a pair overlaps, touches nearly, or lies on two planes."""
+    names, x, y, alive, hold = [], [], [], [], []
+    kinds = list(RADIUS)
+    sites = rng.permutation([(sx, sy) for sx in range(4, 124, 8) for sy in range(4, 124, 8)])[:n_groups]
+    for sx, sy in sites:
+        first, second = rng.choice(kinds, size=2)
+        if rng.random() < 0.2:  # a loner
+            members = [first]
+        else:
+            members = [first, second]
+        angle = rng.uniform(0, 2 * math.pi)
+        depth = rng.choice([rng.uniform(0.01, 0.6), -rng.uniform(0, 0.05)])  # overlapping or a near miss
+        dist = RADIUS[first] + RADIUS[second] - depth
+        offsets = [(0.0, 0.0), (dist * math.cos(angle), dist * math.sin(angle))]
+        for name, (dx, dy) in zip(members, offsets, strict=False):
+            names.append(str(name))
+            x.append(sx + rng.uniform(-0.5, 0.5) + dx)
+            y.append(sy + rng.uniform(-0.5, 0.5) + dy)
+            alive.append(rng.random() > 0.1)
+            hold.append(rng.random() < 0.2)
+    order = rng.permutation(len(names))  # slots in no particular order of position
+    pick = [names[k] for k in order]
+    return (pick, np.array(alive)[order], np.array(hold)[order], np.array(x)[order], np.array(y)[order])
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
+    rng = np.random.default_rng(seed)
+    names, alive, hold, x, y = _scattered_pairs(rng, n_groups=120)
+    slot_stats = np.ascontiguousarray(STATS[[unit_index(name) for name in names]])
+    walk = np.ones((2, 128, 128), dtype=np.uint8)
+    order = np.where(hold, ORDER_HOLD, ORDER_IDLE).astype(np.int8)
+    by_x = np.arange(len(names), dtype=np.int32)
+    key = np.zeros(len(names))
+    expected_x, expected_y, expected_worst = _reference_pass(names, alive, hold, x, y)
+    got_x, got_y = x.copy(), y.copy()
+    worst = _separation(alive, got_x, got_y, order, slot_stats, walk, by_x, key, slot_stats[:, S["radius"]].max())
+    np.testing.assert_allclose(got_x, expected_x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got_y, expected_y, rtol=0, atol=1e-12)
+    assert worst == pytest.approx(expected_worst, abs=1e-12)
+    assert expected_worst > 0.01  # the scene did contain pushes
+
+
+def test_sweep_passes_clear_a_dense_crowd():
+    # 57 marines dropped into a 5x5 box overlap a lot; repeated passes must leave no overlap, as all-pairs passes do.
+    # A pair the sweep failed to look at would stay overlapped forever.
+    rng = np.random.default_rng(3)
+    n = 57
+    x, y = rng.uniform(30, 35, n), rng.uniform(30, 35, n)
+    slot_stats = np.ascontiguousarray(STATS[[unit_index("marine")] * n])
+    walk = np.ones((2, 64, 64), dtype=np.uint8)
+    alive, order = np.ones(n, dtype=bool), np.zeros(n, dtype=np.int8)
+    by_x, key = np.arange(n, dtype=np.int32), np.zeros(n)
+    for _ in range(400):
+        if _separation(alive, x, y, order, slot_stats, walk, by_x, key, 0.375) < 1e-6:
+            break
+    dist = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) + np.eye(n) * 10
+    assert dist.min() > 0.75 - 1e-5
+
+
+@pytest.mark.parametrize("dead_x", [10.3, 9.7])  # the dead unit after or before the living one in x order
+def test_dead_units_are_not_pushed_and_push_nobody(dead_x):
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Marine"], {0: (dead_x, 10.0), 1: (10.0, 10.0), 2: (30.0, 30.0)})
+    engine.place(0, 0, alive=False, health=0.0)
+    engine.step()
+    assert (engine.state.x[0, 0], engine.state.y[0, 0]) == (dead_x, 10.0)
+    assert (engine.state.x[0, 1], engine.state.y[0, 1]) == (10.0, 10.0)
+
+
+def _random_commands(engine: BattleEngine, rng: np.random.Generator) -> Commands:
+    b, u = engine.batch_size, engine.n_units
+    cmd = Commands.empty(b, u)
+    cmd.kind[:] = np.where(rng.random((b, u)) < 0.5, CMD_ATTACK, CMD_MOVE)
+    cmd.target[:] = rng.integers(0, u, size=(b, u))
+    cmd.x[:] = engine.state.x + rng.uniform(-6, 6, size=(b, u))
+    cmd.y[:] = engine.state.y + rng.uniform(-6, 6, size=(b, u))
+    return cmd
+
+
+def test_parallel_step_equals_serial_step_and_skips_inactive_battles(monkeypatch):
+    batch = 100  # not a multiple of the chunk size: the last chunk is short
+    parallel, serial = BattleEngine("2s3z", batch_size=batch), BattleEngine("2s3z", batch_size=batch)
+    rng = np.random.default_rng(5)
+    threshold = engine_module.PARALLEL_MIN_BATCH
+    assert batch >= threshold
+    for step in range(30):
+        cmd = _random_commands(parallel, rng)
+        active = rng.random(batch) < 0.8
+        before = [a.copy() for a in parallel.state]
+        parallel.step(cmd, active)
+        monkeypatch.setattr(engine_module, "PARALLEL_MIN_BATCH", batch + 1)
+        serial.step(cmd, active)
+        monkeypatch.setattr(engine_module, "PARALLEL_MIN_BATCH", threshold)
+        for name, p, s, old in zip(BattleState._fields, parallel.state, serial.state, before, strict=True):
+            assert np.array_equal(p, s), (step, name)
+            assert np.array_equal(p[~active], old[~active]), (step, name)
+
+
+@njit(parallel=True)
+def _claim_all(n_items, chunk, claims, counter, workers):
+    for _ in prange(workers):
+        while True:
+            start = fetch_add(counter, chunk)
+            if start >= n_items:
+                break
+            for k in range(start, min(start + chunk, n_items)):
+                claims[k] += 1
+
+
+def test_fetch_add_hands_out_every_item_exactly_once():
+    for n_items, chunk in ((1, 1), (1000, 7), (4096, 64)):
+        claims, counter = np.zeros(n_items, dtype=np.int64), np.zeros(1, dtype=np.int64)
+        _claim_all(n_items, chunk, claims, counter, 4)
+        assert (claims == 1).all()
+    counter = np.array([5], dtype=np.int64)
+    assert fetch_add(counter, 3) == 5 and counter[0] == 8  # also without the JIT
+
+
+def test_count_alive_and_masked_reset_match_numpy_and_a_fresh_engine():
+    engine = BattleEngine("3s5z", batch_size=12)
+    rng = np.random.default_rng(2)
+    for _ in range(40):
+        engine.step(_random_commands(engine, rng))
+    red, blue = count_alive(engine.state.alive, engine.n_red)
+    assert red.tolist() == engine.state.alive[:, :engine.n_red].sum(axis=1).tolist()
+    assert blue.tolist() == engine.state.alive[:, engine.n_red:].sum(axis=1).tolist()
+    mask = rng.random(12) < 0.5
+    before = [a.copy() for a in engine.state]
+    engine.reset(mask)
+    fresh = BattleEngine("3s5z", batch_size=1).state
+    for name, now, old, new in zip(BattleState._fields, engine.state, before, fresh, strict=True):
+        if name != "rng":
+            assert np.array_equal(now[mask], np.repeat(new, mask.sum(), axis=0)), name
+        assert np.array_equal(now[~mask], old[~mask]), name
+
+
+def test_bad_reset_mask_and_fixed_unit_types_are_refused():
+    engine = BattleEngine("3m", batch_size=4)
+    with pytest.raises(ValueError, match=r"shape \(4,\).*\(3,\)"):
+        engine.reset(np.ones(3, dtype=bool))
+    with pytest.raises(ValueError, match="slot 0 is 'marine_rl'"):
+        engine.place(0, 0, utype=1)
