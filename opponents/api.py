@@ -172,5 +172,11 @@ class Script:
         """Name of the script playing battle ``battle`` this episode (a mixture answers per battle)."""
         return self.name
 
+    def names_of(self, battles: np.ndarray) -> list[str]:
+        """:meth:`name_of` for each of ``battles`` (asked after every reset, so kept cheap for large batches)."""
+        if type(self).name_of is Script.name_of:
+            return [self.name] * len(battles)
+        return [self.name_of(int(b)) for b in battles]
+
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r}>"

@@ -80,6 +80,9 @@ class GuardedScript(Script):
     def name_of(self, battle: int) -> str:
         return self.script.name_of(battle)
 
+    def names_of(self, battles: np.ndarray) -> list[str]:
+        return self.script.names_of(battles)
+
     def __repr__(self) -> str:
         return f"<GuardedScript {self.script!r} time_limit={self.time_limit}>"
 

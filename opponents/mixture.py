@@ -97,6 +97,18 @@ class Mixture(Script):
             if mine.any():
                 script.act(view, commands, mine)
 
+    def names_of(self, battles: np.ndarray) -> list[str]:
+        battles = np.asarray(battles, dtype=np.int64)
+        if self.choice.shape[0] == 0:  # before the first reset
+            return [self.name] * len(battles)
+        choice = self.choice[battles]
+        names = np.full(len(battles), self.name, dtype=object)
+        for k, script in enumerate(self.scripts):
+            mine = choice == k
+            if mine.any():
+                names[mine] = script.names_of(battles[mine])
+        return names.tolist()
+
     def name_of(self, battle: int) -> str:
         if battle >= self.choice.shape[0] or self.choice[battle] < 0:
             return self.name

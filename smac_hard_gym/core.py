@@ -15,6 +15,7 @@ Public surface::
     core.visibility(side=RED)                    # bool (B, n, n + m)
     core.side_view(side)                         # opponents.api.SideView over the live state
     core.opponent_names()                        # list[str], the opponent playing each battle's episode
+    core.opponent_name_array()                   # the same as an object array (B,)
     core.stats()                                 # dict: games, wins, draws, timeouts, per-opponent table
     core.invalidate()                            # after writing into core.state by hand (tests, scenarios)
     core.close()
@@ -165,9 +166,10 @@ class TwoPlayerCore:
         self.last_action = (np.full((b, self.n_red), -1, dtype=np.int64),
                             np.full((b, self.n_blue), -1, dtype=np.int64))
         self.rngs: list[np.random.Generator | None] = [None] * b
+        self._has_rng = np.zeros(b, dtype=bool)
         self.seeds: list[int | None] = [None] * b
         self._stats = _OpponentStats()
-        self._names: list[str] = [SELF_PLAY_NAME] * b  # opponent per battle, fixed for an episode
+        self._names = np.full(b, SELF_PLAY_NAME, dtype=object)  # opponent per battle, fixed for an episode
         self._name_ids = np.full(b, self._stats.name_id(SELF_PLAY_NAME), dtype=np.int64)  # its row in the stats
         self._avail_cache: list[np.ndarray | None] = [None, None]
         self._no_restarts = np.zeros(b, dtype=bool)
@@ -219,9 +221,10 @@ class TwoPlayerCore:
             except Exception as err:
                 self._error = err
                 raise
-            for b in rows:
-                self._names[b] = name = self.opponent.name_of(int(b))
-                self._name_ids[b] = self._stats.name_id(name)
+            names = self.opponent.names_of(rows)
+            ids = {name: self._stats.name_id(name) for name in set(names)}
+            self._names[rows] = names
+            self._name_ids[rows] = [ids[name] for name in names]
         self._error = None
 
     def step(self, red_actions: Any, blue_actions: Any = None) -> StepResult:
@@ -274,7 +277,7 @@ class TwoPlayerCore:
         if n_ended:
             ended = terminated | truncated
             self._stats.record(self._name_ids[ended], outcome[ended], truncated[ended])
-        return StepResult(reward, terminated, truncated, outcome, dead_red, dead_blue, active, list(self._names),
+        return StepResult(reward, terminated, truncated, outcome, dead_red, dead_blue, active, self._names.tolist(),
                           restarted & active)
 
     # -----------------------------------------------------------------------------------------------------------
@@ -312,7 +315,11 @@ class TwoPlayerCore:
 
     def opponent_names(self) -> list[str]:
         """The opponent playing each battle's current episode (asked of the script at each reset)."""
-        return list(self._names)
+        return self._names.tolist()
+
+    def opponent_name_array(self) -> np.ndarray:
+        """:meth:`opponent_names` as a fresh object array (what batched infos hold)."""
+        return self._names.copy()
 
     def stats(self) -> dict[str, Any]:
         """Finished games so far: ``games``, ``wins`` (red), ``losses``, ``draws`` (both sides beaten),
@@ -364,9 +371,10 @@ class TwoPlayerCore:
         unseeded reset, and otherwise left running.
         """
         if seed is None:
-            restart = np.array([self.rngs[b] is None for b in rows], dtype=bool)
+            restart = ~self._has_rng[rows]
             for b in rows[restart]:
                 self.rngs[b] = np.random.default_rng()
+            self._has_rng[rows] = True
             fresh = np.random.default_rng().integers(0, 2**63, size=len(rows)) if restart.any() else None
             return restart, fresh
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
@@ -382,5 +390,6 @@ class TwoPlayerCore:
                 raise ValueError(f"seeds must be non-negative, got {s} for battle {b}")
             self.seeds[b] = int(s)
             self.rngs[b] = np.random.default_rng(int(s))
+            self._has_rng[b] = True
             engine_seeds[k] = np.random.default_rng([int(s), 1]).integers(0, 2**63)
         return np.ones(len(rows), dtype=bool), engine_seeds

@@ -31,7 +31,8 @@ def _masked(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """``values`` (a fresh array, changed in place) with rows outside ``rows`` zeroed, as gymnasium's info batching
     leaves them."""
     if not rows.all():
-        values[~rows] = None if values.dtype == object else 0
+        where = ~rows.reshape(rows.shape + (1,) * (values.ndim - 1))
+        np.copyto(values, None if values.dtype == object else values.dtype.type(0), where=where)
     return values
 
 
@@ -141,9 +142,12 @@ class NativeVectorEnv(VectorEnv):
             rows = np.flatnonzero(ended)
             final_obs, final_masks = self.view.terminal(rows)
             infos["final_obs"] = np.full(self.num_envs, None, dtype=object)
-            for k, b in enumerate(rows):
-                infos["final_obs"][b] = ({key: v[k] for key, v in final_obs.items()} if isinstance(final_obs, dict)
-                                         else final_obs[k])
+            if isinstance(final_obs, dict):
+                for k, b in enumerate(rows):
+                    infos["final_obs"][b] = {key: v[k] for key, v in final_obs.items()}
+            else:
+                for k, b in enumerate(rows.tolist()):
+                    infos["final_obs"][b] = final_obs[k]
             infos["_final_obs"] = ended.copy()
             masks = np.zeros((self.num_envs, self.view.mask_size), dtype=np.int8)
             masks[rows] = final_masks
@@ -199,8 +203,12 @@ class NativeVectorEnv(VectorEnv):
         if not rows.any():
             return
         indices = np.flatnonzero(rows)
-        seeded = [b for b in indices if seeds is not None and seeds[b] is not None]
-        unseeded = [b for b in indices if seeds is None or seeds[b] is None]
+        if seeds is None:
+            self.core.reset(indices)
+            self._ended[rows] = False
+            return
+        seeded = [b for b in indices if seeds[b] is not None]
+        unseeded = [b for b in indices if seeds[b] is None]
         if seeded:
             self.core.reset(seeded, seed=[seeds[b] for b in seeded])
         if unseeded:
@@ -223,7 +231,7 @@ class NativeVectorEnv(VectorEnv):
                 values["restarted"] = (result.restarted.copy(), stepped)
         shown = stepped | resets
         if shown.any():
-            values["opponent"] = (np.asarray(self.core.opponent_names(), dtype=object), shown)
+            values["opponent"] = (self.core.opponent_name_array(), shown)
             values["action_mask"] = (self.view.masks(np.int8) if masks is None else masks, shown)
         infos: dict[str, Any] = {}
         for key, (value, rows) in values.items():
