@@ -25,6 +25,7 @@ class BaseScript(Script):
 
     def __init__(self) -> None:
         self._points: np.ndarray | None = None  # (B, 2) attack-move point per battle
+        self._waiting = False  # some battle was reset and has not had its order yet (most steps: no)
 
     def _order_kind(self, view: SideView) -> str:
         return "attack_move" if view.side == RED else view.spec.enemy_order.kind
@@ -42,9 +43,14 @@ class BaseScript(Script):
             self._points[battles, 1] = y0 + u * (y1 - y0)
         elif kind == "attack_move":
             self._points[battles] = view.enemy_spawn if view.side == RED else order.point
+        self._waiting = True
 
     def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
-        first = active & (view.episode_step == 0)
+        if not self._waiting:
+            return
+        fresh = view.episode_step == 0
+        first = active & fresh
+        self._waiting = bool((fresh & ~active).any())  # reset battles that sat this step out still wait
         if not first.any():
             return
         kind = self._order_kind(view)

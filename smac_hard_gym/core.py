@@ -12,6 +12,7 @@ Public surface::
     core.avail_actions(side=RED)                 # bool (B, n, n_actions)   side: RED=0 / BLUE=1
     core.observations(side=RED, out=None)        # float32 (B, n, obs_size)
     core.global_state(side=RED, out=None)        # float32 (B, state_size)
+    core.encode(side=RED)                        # (masks, observations, state) in one pass
     core.visibility(side=RED)                    # bool (B, n, n + m)
     core.side_view(side)                         # opponents.api.SideView over the live state
     core.opponent_names()                        # list[str], the opponent playing each battle's episode
@@ -302,6 +303,15 @@ class TwoPlayerCore:
         obs = self.observations(side) if self.options.obs_instead_of_state else None
         return self.features[side].global_state(self.backend.state, self.last_action[side], self.episode_step,
                                                 obs=obs, out=out)
+
+    def encode(self, side: int = RED) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The values of :meth:`avail_actions`, :meth:`observations` and :meth:`global_state` in one pass, as arrays
+        for this state (the masks also fill the ``avail_actions`` cache: treat them as read-only)."""
+        side = self._side(side)
+        avail, obs, state = self.features[side].encode(self.backend.state, self.last_action[side], self.episode_step)
+        if self._avail_cache[side] is None:
+            self._avail_cache[side] = avail
+        return avail, obs, state
 
     def visibility(self, side: int = RED) -> np.ndarray:
         """bool ``(B, n, n + m)``: SMAC's visibility matrix per battle."""

@@ -395,6 +395,27 @@ class SideFeatures:
                               self._state_flags, self._state_layout, float(self.episode_limit), out)
         return out
 
+    def encode(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
+               rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Available actions, observations and global state in one kernel call (fresh arrays, the values of
+        :func:`~smac_hard_gym.actions.available_actions`, :meth:`observations` and :meth:`global_state`)."""
+        rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
+        batch = len(rows)
+        avail = np.empty((batch, self.n_agents, self.n_actions), dtype=bool)
+        obs = np.empty((batch, self.n_agents, self.obs_size), dtype=np.float32)
+        copy_obs = self.options.obs_instead_of_state
+        global_state = np.empty((0 if copy_obs else batch, self.state_size), dtype=np.float32)
+        fk.encode_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
+                        state.cooldown, last_action, episode_step, self.own.start, self.enemy.start, self.own_healer,
+                        self.heal_target_ok, self.pathable, self.move_amount / 2.0, self.n_heal_targets,
+                        self.own_health_max, self.own_shield_max, self.enemy_health_max, self.enemy_shield_max,
+                        self.own_onehot, self.enemy_onehot, self._obs_flags, self.terrain_height, self._probe_dx,
+                        self._probe_dy, self._obs_layout, self.own_max_cooldown, self._frame, self._state_flags,
+                        self._state_layout, float(self.episode_limit), avail, obs, global_state)
+        if copy_obs:
+            global_state = obs.reshape(batch, self.state_size).copy()
+        return avail, obs, global_state
+
     def all_rows(self, state: BattleState) -> np.ndarray:
         """Indices of every battle of ``state`` (cached per batch size)."""
         batch = state.alive.shape[0]

@@ -161,7 +161,7 @@ class StarCraft2Env:
         self._total_steps = 0
         self._episode_count = 0
         self._episode_over = False
-        self._cache: dict[tuple[str, int], np.ndarray] = {}
+        self._cache: dict[int, dict[str, np.ndarray]] = {}  # per player: battle 0's encoded features
         self._renderer = None
 
     def __repr__(self) -> str:
@@ -234,15 +234,12 @@ class StarCraft2Env:
     # Observations, state, actions.
 
     def _cached(self, what: str, player_id: int) -> np.ndarray:
-        key = (what, player_id)
-        if key not in self._cache:
-            if what == "obs":
-                self._cache[key] = self._core.observations(player_id)[0]
-            elif what == "state":
-                self._cache[key] = self._core.global_state(player_id)[0]
-            else:
-                self._cache[key] = self._core.avail_actions(player_id)[0]
-        return self._cache[key]
+        """Battle 0's ``"avail"``, ``"obs"`` or ``"state"``: all three are encoded together on the first request
+        after a step (pymarl reads all three every step)."""
+        if player_id not in self._cache:
+            avail, obs, state = self._core.encode(player_id)
+            self._cache[player_id] = {"avail": avail[0], "obs": obs[0], "state": state[0]}
+        return self._cache[player_id][what]
 
     def _features(self, player_id: int) -> SideFeatures:
         if player_id not in (RED, BLUE):

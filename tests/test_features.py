@@ -401,3 +401,25 @@ def test_encoding_chosen_battles_matches_their_rows_of_the_batch():
     np.testing.assert_array_equal(some_avail, avail[rows])
     np.testing.assert_array_equal(feats.observations(engine.state, some_avail, last, steps, rows=rows), obs[rows])
     np.testing.assert_array_equal(feats.global_state(engine.state, last, steps, rows=rows), state[rows])
+
+
+@pytest.mark.parametrize("name", ["MMM", "2s3z", "corridor"])
+def test_one_pass_encoding_matches_the_separate_features(name):
+    # StarCraft2Env reads masks, observations and state through one fused kernel: same values as each on its own.
+    engine = BattleEngine(name, batch_size=3)
+    rng = np.random.default_rng(5)
+    engine.state.x[:] += rng.uniform(-3, 3, engine.state.x.shape)
+    engine.state.health[:] *= rng.uniform(0.2, 1.0, engine.state.health.shape)
+    engine.state.alive[0, 1] = engine.state.alive[2, -1] = False
+    for combo in ({}, {"obs_last_action": True, "obs_pathing_grid": True, "obs_terrain_height": True,
+                       "obs_timestep_number": True, "state_timestep_number": True}, {"obs_instead_of_state": True}):
+        for side in (RED, BLUE):
+            feats = SideFeatures(engine.spec, side, SmacOptions(**combo))
+            last = rng.integers(-1, feats.n_actions, (3, feats.n_agents))
+            steps = rng.integers(0, 50, 3)
+            avail, obs, state = feats.encode(engine.state, last, steps)
+            expected_avail = available_actions(feats, engine.state)
+            expected_obs = feats.observations(engine.state, expected_avail, last, steps)
+            np.testing.assert_array_equal(avail, expected_avail)
+            np.testing.assert_array_equal(obs, expected_obs)
+            np.testing.assert_array_equal(state, feats.global_state(engine.state, last, steps, obs=expected_obs))
