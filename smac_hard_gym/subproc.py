@@ -778,9 +778,16 @@ class SubprocVectorEnv(VectorEnv):
 
     def _observations(self, parts: list[dict[str, Any]]) -> Any:
         """The batch's observations: each worker's rows from shared memory, from the pipe, or kept from before."""
-        rows = []
         for worker, part in zip(self._workers, parts, strict=True):
             self._restore_masks(worker, part["infos"])
+        if "obs" in self._block.arrays and not any(p.get("restored") or p.get("obs") is not None for p in parts):
+            # The usual step: every worker wrote its rows into shared memory, so one copy reads them all.
+            obs = self._block.arrays["obs"][:self.num_envs].copy()
+            for worker in self._workers:
+                worker.last_obs = obs[worker.start:worker.stop]
+            return obs
+        rows = []
+        for worker, part in zip(self._workers, parts, strict=True):
             if part.get("restored"):
                 obs = worker.last_obs
             elif part.get("obs") is not None:
@@ -797,9 +804,14 @@ class SubprocVectorEnv(VectorEnv):
         if not self.mask_size or present is None or MASK_KEY in infos:
             return
         masks = self._block.arrays["mask"][worker.start:worker.stop]
-        self._masks[worker.start:worker.stop][present] = masks[present] != 0
+        present = np.asarray(present)
         self._masks_seen = True
-        infos[MASK_KEY] = np.where(np.asarray(present)[:, None], masks, 0).astype(np.int8)
+        if present.all():  # the usual step: every battle reported its masks
+            np.not_equal(masks, 0, out=self._masks[worker.start:worker.stop])
+            infos[MASK_KEY] = masks.astype(np.int8)
+            return
+        self._masks[worker.start:worker.stop][present] = masks[present] != 0
+        infos[MASK_KEY] = np.where(present[:, None], masks, 0).astype(np.int8)
 
 
 def _first_line(text: str) -> str:

@@ -44,6 +44,7 @@ _CORE_PARTS = (
     ("opponent", "act", "opponent script"),
     ("features.0", "observations", "observations"),
     ("features.0", "global_state", "global state"),
+    ("features.0", "encode", "masks, observations and state in one pass (StarCraft2Env)"),
     ("core_module", "available_actions", "action masks"),
     ("core_module", "check_actions", "action checks + decoding"),
     ("core_module", "decode_actions", "action checks + decoding"),
