@@ -15,14 +15,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP, CMD_STOP, NO_UNIT
 
 __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
     "OBS_FLAGS", "STATE_FLAGS", "REWARD_FLAGS",
-    "available_actions_batch", "observations_batch", "observations_batch_serial", "global_state_batch", "encode_batch",
+    "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
     "outcomes_batch", "rewards_batch", "finish_step", "first_invalid_action", "decode_actions_batch",
 ]
 
@@ -219,26 +219,17 @@ def _observe_battle(k, b, x, y, alive, health, shield, avail, last_action, episo
             o[c + t] = own_onehot[i, t]
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@kernel
 def observations_batch(rows, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
                        flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
     """Write the observations of every agent of battles ``rows`` into ``out`` (float32 (len(rows), n,
-    obs_size)), battles in parallel; ``avail`` is aligned with ``out``.
+    obs_size)); ``avail`` is aligned with ``out``. ``flags`` follow OBS_FLAGS; ``layout`` is (enemy_offset,
+    ally_offset, own_offset, enemy_feats, ally_feats).
 
-    ``flags`` follow OBS_FLAGS; ``layout`` is (enemy_offset, ally_offset, own_offset, enemy_feats, ally_feats).
+    One thread: writing the observations is bound by memory bandwidth, and a second thread measured no faster (3m,
+    4096 battles: 0.58 ms on one thread, 0.75 ms on two).
     """
-    for k in prange(rows.shape[0]):
-        _observe_battle(k, rows[k], x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
-                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
-                        enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out)
-
-
-@kernel
-def observations_batch_serial(rows, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
-                              own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
-                              enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
-    """``observations_batch`` on the calling thread (small batches: waking the pool costs more than it saves)."""
     for k in range(rows.shape[0]):
         _observe_battle(k, rows[k], x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                         own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,

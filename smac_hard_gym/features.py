@@ -72,9 +72,6 @@ _STANDARD_TYPE_ORDER = {
     "bane": ("baneling", "zergling"),
 }
 
-# Observation calls over at least this many (battle, agent, unit) triples run battles in parallel.
-PARALLEL_MIN_TRIPLES = 1 << 15
-
 _SMAC_MAX_COOLDOWN = np.array([u.smac_max_cooldown for u in UNITS], dtype=np.float64)
 
 
@@ -297,8 +294,6 @@ class SideFeatures:
         self._frame = np.array([*self.center, *self.max_distance], dtype=np.float64)
         self.heal_target_ok = ~self.own_healer[:self.n_heal_targets]
         self._all_rows = np.arange(0, dtype=np.int64)
-        # Enough (battle, agent, unit) triples per observation call to pay for waking the thread pool.
-        self._parallel_obs_from = max(1, PARALLEL_MIN_TRIPLES // (n * (n + self.n_enemies)))
 
     def __repr__(self) -> str:
         return (f"SideFeatures(map={self.spec.name!r}, side={SIDE_NAMES[self.side]!r}, "
@@ -362,11 +357,11 @@ class SideFeatures:
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         if out is None:
             out = np.empty((len(rows), self.n_agents, self.obs_size), dtype=np.float32)
-        run = fk.observations_batch if len(rows) >= self._parallel_obs_from else fk.observations_batch_serial
-        run(rows, state.x, state.y, state.alive, state.health, state.shield, avail, last_action, episode_step,
-            self.own.start, self.enemy.start, self.own_health_max, self.own_shield_max, self.enemy_health_max,
-            self.enemy_shield_max, self.own_onehot, self.enemy_onehot, self._obs_flags, self.pathable,
-            self.terrain_height, self._probe_dx, self._probe_dy, self._obs_layout, float(self.episode_limit), out)
+        fk.observations_batch(rows, state.x, state.y, state.alive, state.health, state.shield, avail, last_action,
+                              episode_step, self.own.start, self.enemy.start, self.own_health_max,
+                              self.own_shield_max, self.enemy_health_max, self.enemy_shield_max, self.own_onehot,
+                              self.enemy_onehot, self._obs_flags, self.pathable, self.terrain_height, self._probe_dx,
+                              self._probe_dy, self._obs_layout, float(self.episode_limit), out)
         return out
 
     def global_state(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,

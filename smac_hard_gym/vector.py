@@ -30,9 +30,11 @@ __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 def _masked(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """``values`` (a fresh array, changed in place) with rows outside ``rows`` zeroed, as gymnasium's info batching
     leaves them."""
-    if not rows.all():
-        where = ~rows.reshape(rows.shape + (1,) * (values.ndim - 1))
-        np.copyto(values, None if values.dtype == object else values.dtype.type(0), where=where)
+    if values.ndim > 1:
+        if not rows.all():
+            values[~rows] = 0  # row assignment: far faster than a broadcast where= for 2-D arrays
+    elif not rows.all():
+        np.copyto(values, None if values.dtype == object else values.dtype.type(0), where=~rows)
     return values
 
 
@@ -218,8 +220,8 @@ class NativeVectorEnv(VectorEnv):
     def _info(self, stepped: np.ndarray, resets: np.ndarray, result: Any = None,
               replaced: np.ndarray | None = None, masks: np.ndarray | None = None) -> dict[str, Any]:
         """Batched infos as single envs give them: step keys for the ``stepped`` battles, ``opponent`` and
-        ``action_mask`` (of the current state, or ``masks`` if given) for those and the ``resets`` battles; each key
-        with its ``_key``."""
+        ``action_mask`` (of the current state, or ``masks``: given already zero outside those battles) for those and
+        the ``resets`` battles; each key with its ``_key``."""
         values: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         if stepped.any():
             values["battle_won"] = (result.outcome == RED_WON, stepped)
@@ -235,7 +237,9 @@ class NativeVectorEnv(VectorEnv):
             values["action_mask"] = (self.view.masks(np.int8) if masks is None else masks, shown)
         infos: dict[str, Any] = {}
         for key, (value, rows) in values.items():
-            infos[key], infos[f"_{key}"] = _masked(value, rows), rows.copy()
+            # Given masks already hold zeros outside their rows.
+            infos[key] = value if key == "action_mask" and masks is not None else _masked(value, rows)
+            infos[f"_{key}"] = rows.copy()
         return infos
 
     def _reset_rows(self, options: dict[str, Any] | None) -> np.ndarray:
