@@ -39,7 +39,8 @@ active)`` every step; ``"self-play"``: ``step`` takes blue's SMAC actions, valid
 
 Seeding: ``reset(seed=s)`` gives battle b the generator ``np.random.default_rng(s + b)`` (so battle b of a batch
 draws like a single env seeded ``s + b``); a sequence seeds the listed battles one by one; ``None`` keeps each
-battle's generator running (fresh entropy the first time).
+battle's generator running (fresh entropy the first time). The simulator's own randomness (SC2's weapon delays) has a
+separate stream per battle, restarted from the same seed and otherwise left running across episodes.
 """
 
 from __future__ import annotations

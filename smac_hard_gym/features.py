@@ -4,7 +4,8 @@ Everything here is a function of a :class:`~smac_hard_gym.engine.state.BattleSta
 battles) and a side: :class:`SideFeatures` holds one side's constants (which slots are "own" and "enemy", health
 and shield normalisers, unit-type one-hots) and the feature-name lists that define every offset and size. The red
 side's view is SMAC's (``shared/reference/smac_interface.md`` §3-§6); the blue side gets the same encoding from its
-own side (SMAC-HARD's self-play layout).
+own side (SMAC-HARD's self-play layout). The arithmetic runs in :mod:`smac_hard_gym.feature_kernels`, one compiled
+pass per feature block over the batch; this module holds the constants, sizes and names the kernels are given.
 
 Observation of agent i (float32), blocks in this order; a dead agent's observation is all zero except the timestep:
 
