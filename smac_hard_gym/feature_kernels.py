@@ -23,7 +23,7 @@ __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
     "OBS_FLAGS", "STATE_FLAGS", "REWARD_FLAGS",
     "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
-    "outcomes_batch", "rewards_batch", "finish_step", "first_invalid_action", "decode_actions_batch",
+    "rewards_batch", "finish_step", "first_invalid_action", "decode_actions_batch",
 ]
 
 SHOOT_RANGE = 6.0  # SMAC: attack/heal available within this centre distance (<=), every unit
@@ -389,20 +389,9 @@ def _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcom
 
 
 @kernel
-def outcomes_batch(alive, fighter, n_red, outcome, dead_red, dead_blue):
-    """Outcome (int8 (B,): RUNNING, RED_WON, BLUE_WON or DRAW) and dead units per side (int64 (B,)) of each battle.
-
-    A side is beaten when none of its ``fighter`` units is alive (SMAC's "only medivacs left" rule, for both sides);
-    both beaten at once is a draw.
-    """
-    for b in range(alive.shape[0]):
-        _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue)
-
-
-@kernel
 def rewards_batch(prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward):
     """Both sides' rewards (float32 (B, 2): [red, blue]) for the step from (``prev_hs``, ``prev_alive``), health plus
-    shield and alive flags before the step, to the current arrays; ``outcome`` as from ``outcomes_batch``.
+    shield and alive flags before the step, to the current arrays, and each battle's ``outcome``.
 
     ``values`` is (death value, win, defeat, negative scale); ``flags`` follow REWARD_FLAGS; ``divisor`` scales each
     side's reward.
@@ -418,7 +407,8 @@ def finish_step(prev_hs, prev_alive, alive, health, shield, fighter, n_red, acti
     """The two-player core's bookkeeping after the engine stepped the ``active`` battles, in one pass.
 
     Counts the step and records the actions (``blue_actions`` with zero rows: a script played blue), then writes
-    outcome, rewards and dead counts as ``outcomes_batch`` and ``rewards_batch`` do, ``terminated`` (a result, or a
+    outcome (a side is beaten when none of its ``fighter`` units is alive, SMAC's "only medivacs left" rule; both
+    beaten at once is a draw), rewards as ``rewards_batch`` does, dead counts, ``terminated`` (a result, or a
     ``restarted`` game), ``truncated`` (``episode_limit`` reached without one) and marks ended battles ``done``.
     Battles not active, and restarted ones, get RUNNING and zero reward. Returns the number of battles that ended.
     """

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import NamedTuple
 
 import numpy as np
 
@@ -52,7 +51,7 @@ from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.units import STATS, UNITS, WEAPON_HEAL, S, unit_index
 
 __all__ = [
-    "SmacOptions", "SideFeatures", "Geometry", "RewardFunction", "battle_outcome", "last_action_onehot",
+    "SmacOptions", "SideFeatures", "RewardFunction", "last_action_onehot",
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW", "SIDE_NAMES",
 ]
 
@@ -170,19 +169,6 @@ def last_action_onehot(last_action: np.ndarray, n_actions: int) -> np.ndarray:
     return (last_action[..., None] == np.arange(n_actions)).astype(np.float32)
 
 
-class Geometry(NamedTuple):
-    """Pairwise offsets of one side's units to the enemy's and to each other, for one state snapshot."""
-
-    own_alive: np.ndarray  # bool (B, n)
-    enemy_alive: np.ndarray  # bool (B, m)
-    enemy_dx: np.ndarray  # (B, n, m): enemy x - own x
-    enemy_dy: np.ndarray
-    enemy_dist: np.ndarray
-    ally_dx: np.ndarray | None  # (B, n, n): ally j x - own i x (None when not asked for)
-    ally_dy: np.ndarray | None
-    ally_dist: np.ndarray | None
-
-
 class SideFeatures:
     """SMAC's features from one side's point of view on one map, for a batch of battles.
 
@@ -222,7 +208,6 @@ class SideFeatures:
         self.own_max_cooldown = _SMAC_MAX_COOLDOWN[utype[self.own]]
         healer = STATS[utype, S["weapon"]] == WEAPON_HEAL
         self.own_healer = healer[self.own]
-        self.any_healer = bool(self.own_healer.any())
         self.n_heal_targets = min(self.n_agents, self.n_enemies)  # 6+j addresses ally j only for j < n_enemies
         cols = team_type_columns(spec, utype, n_red)
         onehot = np.zeros((n_units, bits), dtype=np.float32)
@@ -230,8 +215,6 @@ class SideFeatures:
             onehot[np.arange(n_units), cols] = 1.0
         self.own_onehot, self.enemy_onehot = onehot[self.own], onehot[self.enemy]
         n = self.n_agents
-        self.others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(
-            n, n - 1)
 
         # Terrain.
         self.map_x, self.map_y = spec.size
@@ -332,20 +315,6 @@ class SideFeatures:
     # -----------------------------------------------------------------------------------------------------------
     # Features.
 
-    def geometry(self, state: BattleState, allies: bool = True) -> Geometry:
-        """Offsets and distances from this side's units to every enemy and (if ``allies``) every ally."""
-        ox, oy = state.x[:, self.own], state.y[:, self.own]
-        ex, ey = state.x[:, self.enemy], state.y[:, self.enemy]
-        edx = ex[:, None, :] - ox[:, :, None]
-        edy = ey[:, None, :] - oy[:, :, None]
-        adx = ady = adist = None
-        if allies:
-            adx = ox[:, None, :] - ox[:, :, None]
-            ady = oy[:, None, :] - oy[:, :, None]
-            adist = np.sqrt(adx * adx + ady * ady)
-        return Geometry(state.alive[:, self.own], state.alive[:, self.enemy], edx, edy,
-                        np.sqrt(edx * edx + edy * edy), adx, ady, adist)
-
     def observations(self, state: BattleState, avail: np.ndarray, last_action: np.ndarray,
                      episode_step: np.ndarray, out: np.ndarray | None = None,
                      rows: np.ndarray | None = None) -> np.ndarray:
@@ -419,36 +388,23 @@ class SideFeatures:
             self._all_rows = np.arange(batch, dtype=np.int64)
         return self._all_rows
 
-    def visibility(self, state: BattleState, geo: Geometry | None = None) -> np.ndarray:
+    def visibility(self, state: BattleState) -> np.ndarray:
         """SMAC's visibility matrix ``(B, n_agents, n_agents + n_enemies)`` bool: alive units within sight of an
         alive agent (allies first, symmetric among allies, never oneself)."""
-        if geo is None or geo.ally_dist is None:
-            geo = self.geometry(state)
-        alive = geo.own_alive
-        allies = alive[:, :, None] & alive[:, None, :] & (geo.ally_dist < SIGHT_RANGE)
-        allies &= ~np.eye(self.n_agents, dtype=bool)
-        enemies = alive[:, :, None] & geo.enemy_alive[:, None, :] & (geo.enemy_dist < SIGHT_RANGE)
-        return np.concatenate([allies, enemies], axis=2)
+        x, y, alive = state.x, state.y, state.alive
+        own = self.own
+
+        def within_sight(targets: slice) -> np.ndarray:
+            dx = x[:, None, targets] - x[:, own, None]
+            dy = y[:, None, targets] - y[:, own, None]
+            return alive[:, own, None] & alive[:, None, targets] & (np.sqrt(dx * dx + dy * dy) < SIGHT_RANGE)
+
+        allies = within_sight(own) & ~np.eye(self.n_agents, dtype=bool)
+        return np.concatenate([allies, within_sight(self.enemy)], axis=2)
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # Outcome and reward.
-
-
-def battle_outcome(alive: np.ndarray, fighter: np.ndarray, n_red: int,
-                   dead_counts: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """Outcome per battle (int8 ``(B,)``: RUNNING, RED_WON, BLUE_WON or DRAW).
-
-    A side is beaten when none of its ``fighter`` units (every unit but medivacs: SMAC's "only medivacs left" rule
-    of MMM maps, applied to both sides) is alive; both beaten in the same step is a draw. ``dead_counts``, two int64
-    ``(B,)`` arrays, receive the dead units of red and blue.
-    """
-    batch = alive.shape[0]
-    outcome = np.empty(batch, dtype=np.int8)
-    dead_red, dead_blue = dead_counts if dead_counts is not None else (np.empty(batch, np.int64),
-                                                                       np.empty(batch, np.int64))
-    fk.outcomes_batch(alive, np.ascontiguousarray(fighter, dtype=bool), int(n_red), outcome, dead_red, dead_blue)
-    return outcome
 
 
 class RewardFunction:
@@ -473,7 +429,8 @@ class RewardFunction:
     def __call__(self, prev_hs: np.ndarray, prev_alive: np.ndarray, state: BattleState,
                  outcome: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Rewards ``(B, 2)`` float32 ([red, blue]) for the step from (``prev_hs``, ``prev_alive``), the health plus
-        shield and alive flags of every unit before the step, to ``state``; ``outcome`` from :func:`battle_outcome`."""
+        shield and alive flags of every unit before the step, to ``state``; ``outcome`` per battle (int8: RUNNING,
+        RED_WON, BLUE_WON or DRAW)."""
         if out is None:
             out = np.empty((state.alive.shape[0], 2), dtype=np.float32)
         fk.rewards_batch(prev_hs, prev_alive, state.alive, state.health, state.shield, self.n_red,

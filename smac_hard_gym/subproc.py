@@ -666,12 +666,7 @@ class SubprocVectorEnv(VectorEnv):
             flag = {RESTART_KEY: np.ones(n, dtype=bool), f"_{RESTART_KEY}": np.ones(n, dtype=bool)}
             last = worker.last_obs
             if self.autoreset_mode == AutoresetMode.SAME_STEP:
-                self._send(worker, "reset", (None, None))
-                ok, reply = self._receive(worker, self.timeout, "reset")
-                if not ok:
-                    self.close()
-                    raise WorkerError(f"worker {w} failed again after its restart: {reply}")
-                part = self._unpack_reset(worker, (True, reply))
+                part = self._unpack_reset(worker, (True, self._reset_restarted(worker)))
                 final_obs = np.full(n, None, dtype=object)
                 for i in range(n):
                     final_obs[i] = _row(last, i)
@@ -679,14 +674,19 @@ class SubprocVectorEnv(VectorEnv):
                                  "final_info": dict(flag), "_final_info": np.ones(n, dtype=bool)}
             else:
                 if self.autoreset_mode == AutoresetMode.DISABLED:
-                    self._send(worker, "reset", (None, None))
-                    ok, reply = self._receive(worker, self.timeout, "reset")
-                    if not ok:
-                        self.close()
-                        raise WorkerError(f"worker {w} failed again after its restart: {reply}")
+                    self._reset_restarted(worker)
                 part = {"obs": last, "infos": dict(flag), "restored": True}
             out[w] = part
         return out
+
+    def _reset_restarted(self, worker: _Worker) -> Any:
+        """Reset a rebuilt worker's battles and return its reply; a second failure closes everything and raises."""
+        self._send(worker, "reset", (None, None))
+        ok, reply = self._receive(worker, self.timeout, "reset")
+        if not ok:
+            self.close()
+            raise WorkerError(f"worker {worker.index} failed again after its restart: {reply}")
+        return reply
 
     def action_masks(self) -> np.ndarray:
         """bool ``(num_envs, mask_size)``: legal actions of the latest observations (kept from the infos)."""

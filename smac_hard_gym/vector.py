@@ -30,10 +30,11 @@ __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 def _masked(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """``values`` (a fresh array, changed in place) with rows outside ``rows`` zeroed, as gymnasium's info batching
     leaves them."""
+    if rows.all():
+        return values
     if values.ndim > 1:
-        if not rows.all():
-            values[~rows] = 0  # row assignment: far faster than a broadcast where= for 2-D arrays
-    elif not rows.all():
+        values[~rows] = 0  # row assignment: far faster than a broadcast where= for 2-D arrays
+    else:
         np.copyto(values, None if values.dtype == object else values.dtype.type(0), where=~rows)
     return values
 
