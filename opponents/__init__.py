@@ -27,7 +27,7 @@ import numpy as np
 
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents.api import Script, ScriptError, SideView
-from smac_hard_gym.opponents.base import BaseScript
+from smac_hard_gym.opponents.base import BaseScript, SmacScript
 from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT, GuardedScript
 from smac_hard_gym.opponents.helpers import BatchScript, Frame, Memory, Orders
 from smac_hard_gym.opponents.library import (
@@ -44,7 +44,7 @@ from smac_hard_gym.opponents.mixture import Mixture, check_probs
 from smac_hard_gym.opponents.per_battle import BattleView, PerBattleScript
 
 __all__ = [
-    "Script", "SideView", "ScriptError", "BaseScript", "BatchScript", "Frame", "Memory", "Orders",
+    "Script", "SideView", "ScriptError", "BaseScript", "SmacScript", "BatchScript", "Frame", "Memory", "Orders",
     "PerBattleScript", "BattleView", "Mixture", "GuardedScript", "ScriptInfo", "SCRIPTS", "POOLS",
     "make_opponent", "make_script", "scripts_for_map", "pool_for_map", "load_script",
 ]

@@ -1,11 +1,14 @@
 """The built-in script library: every script by name, the maps it plays, and SMAC-HARD's per-map pools.
 
-- Generic scripts (``base``, ``nearest``, ``weakest``, ``focus_fire``, ``kite``, ``retreat_wounded``,
+- The two base opponents: ``smac`` (SMAC's one-player map behaviour: one attack-move at spawn, then SC2's automatic
+  targeting) and ``base`` (SMAC-HARD's ``base_script``: a per-map attack-move re-issued every step). See
+  :mod:`smac_hard_gym.opponents.base`.
+- Generic scripts (``nearest``, ``weakest``, ``focus_fire``, ``kite``, ``retreat_wounded``,
   ``round_robin``, ``chase``, ``stop``) play every map.
 - Map scripts are the SMAC-HARD strategies, written anew; each plays the maps whose pool lists it.
-- ``default`` on a map is its SMAC-HARD pool (``SCRIPT_DICT`` at SMAC-HARD's newest commit, with ``base``); ``blackbox``
-  is that pool without ``base`` (the paper's black-box evaluation set). A map without a SMAC-HARD pool (a user's
-  map) gets :data:`FALLBACK_POOL`.
+- ``default`` on a map is its SMAC-HARD pool (``SCRIPT_DICT`` at SMAC-HARD's newest commit, with SMAC-HARD's
+  ``base``); ``blackbox`` is that pool without ``base`` (the paper's black-box evaluation set). A map without a
+  SMAC-HARD pool (a user's map) gets :data:`FALLBACK_POOL`.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from dataclasses import dataclass
 
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents.api import Script
-from smac_hard_gym.opponents.base import BaseScript
+from smac_hard_gym.opponents.base import BaseScript, SmacScript
 from smac_hard_gym.opponents.generic import (
     Chase,
     FocusFire,
@@ -87,7 +90,7 @@ def _maps_with(name: str) -> tuple[str, ...]:
     return tuple(m for m, pool in POOLS.items() if name in pool)
 
 
-_GENERIC: list[Callable[[], Script]] = [BaseScript, Nearest, Weakest, FocusFire, Kite, RetreatWounded, RoundRobin,
+_GENERIC: list[Callable[[], Script]] = [SmacScript, BaseScript, Nearest, Weakest, FocusFire, Kite, RetreatWounded, RoundRobin,
                                         Chase, Stop]
 _MAP_SCRIPTS: list[Callable[[], Script]] = [
     lambda: LineAdvance("front"), lambda: LineAdvance("weakest"),

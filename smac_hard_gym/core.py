@@ -4,7 +4,7 @@ Every environment API (``StarCraft2Env``, the gymnasium env, the vector envs) is
 
 Public surface::
 
-    core = TwoPlayerCore(map_name, batch_size=1, *, mode="script", opponent="base", opponent_probs=None,
+    core = TwoPlayerCore(map_name, batch_size=1, *, mode="script", opponent="smac", opponent_probs=None,
                          backend="native", step_mul=8, options=SmacOptions(), seed=None, backend_options=None)
 
     core.reset(battles=None, seed=None)          # start new episodes (all battles, or the indices given)
@@ -130,7 +130,7 @@ class TwoPlayerCore:
     """B battles of one map with SMAC's interface for both sides; see the module docstring for the API."""
 
     def __init__(self, map_name: str | MapSpec, batch_size: int = 1, *, mode: str = "script",
-                 opponent: Any = "base", opponent_probs: Sequence[float] | None = None, backend: str = "native",
+                 opponent: Any = "smac", opponent_probs: Sequence[float] | None = None, backend: str = "native",
                  step_mul: int = 8, options: SmacOptions | None = None, seed: int | None = None,
                  backend_options: dict | None = None) -> None:
         if mode not in MODES:
@@ -151,7 +151,7 @@ class TwoPlayerCore:
         self.opponent: Script | None = None
         if mode == "script":
             self.opponent = make_opponent(self.spec, opponent, opponent_probs)
-        elif opponent not in (None, "base") or opponent_probs is not None:
+        elif opponent not in (None, "smac") or opponent_probs is not None:
             raise ValueError(f"mode 'self-play' takes blue's actions from step(); opponent={opponent!r} and "
                              f"opponent_probs={opponent_probs!r} apply to mode 'script' only")
 

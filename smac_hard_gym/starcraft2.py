@@ -44,7 +44,7 @@ class StarCraft2Env:
 
         - ``mode``: ``"script"`` (default) or ``"self-play"``; ``"single"`` / ``"multi"`` are accepted.
         - ``opponent``: a script name, a Script object, or anything ``opponents.make_opponent`` accepts
-          (default ``"base"``: SMAC's own opponent); ``opponent_probs``: weights of a list of scripts.
+          (default ``"smac"``: SMAC's own opponent; ``"base"`` is SMAC-HARD's); ``opponent_probs``: weights of a list of scripts.
           ``strategy_prob`` (SMAC-HARD) gives weights over the map's default pool (``opponent="default"``).
         - ``backend``: ``"native"`` (embedded engine) or ``"sc2"``; ``backend_options``: passed to it.
 
@@ -94,7 +94,7 @@ class StarCraft2Env:
         heuristic_rest: bool = False,
         debug: bool = False,
         mode: str = "script",
-        opponent: Any = "base",
+        opponent: Any = "smac",
         opponent_probs: Sequence[float] | None = None,
         strategy_prob: Sequence[float] | None = None,
         backend: str = "native",
@@ -108,7 +108,7 @@ class StarCraft2Env:
         if strategy_prob is not None:
             if opponent_probs is not None:
                 raise ValueError("pass either opponent_probs or SMAC-HARD's strategy_prob, not both")
-            if opponent != "base":
+            if opponent != "smac":
                 raise ValueError(f"strategy_prob weights the map's default pool; it cannot be combined with "
                                  f"opponent={opponent!r} (use opponent=[...] with opponent_probs=[...])")
             opponent, opponent_probs = "default", strategy_prob
@@ -133,7 +133,7 @@ class StarCraft2Env:
             reward_negative_scale=reward_negative_scale, reward_scale=reward_scale,
             reward_scale_rate=reward_scale_rate, move_amount=move_amount,
         )
-        if self.mode == "self-play" and (opponent != "base" or opponent_probs is not None):
+        if self.mode == "self-play" and (opponent != "smac" or opponent_probs is not None):
             raise ValueError("mode 'self-play' has no opponent script; drop opponent= / opponent_probs=")
         self._core = TwoPlayerCore(
             map_name, 1, mode=self.mode, opponent=opponent if self.mode == "script" else None,
