@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 from engine_helpers import engine_with
 
-from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, CMD_HOLD
+from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, CMD_HOLD, CMD_MOVE
 from smac_hard_gym.engine.state import ORDER_IDLE
 
 R = 0.375  # marine radius
@@ -78,3 +78,95 @@ def test_ordered_attack_completes_when_the_target_dies():
     engine.step()
     assert not engine.state.alive[0, 1]
     assert engine.state.order[0, 0] == ORDER_IDLE and engine.state.target[0, 0] == -1
+
+
+# --- Re-acquisition while chasing (SC2: a target out of weapon range is re-evaluated; see docs/engine_targeting.md).
+# Zealot: radius 0.5, melee range 0.1, scan range 5 edge to edge (5.875 centre to centre against a marine).
+
+
+def _marine_zealot_marine(a: tuple[float, float], b: tuple[float, float], zealot=(16.0, 16.0)):
+    """Two red marines (slots 0, 1) and a blue zealot (slot 2) that is already chasing marine 0."""
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Zealot"], {0: a, 1: b, 2: zealot})
+    engine.place(0, 2, target=0)
+    return engine
+
+
+def _order_attack(engine, shooter: int, target: int) -> None:
+    engine.commands.kind[0, shooter] = CMD_ATTACK
+    engine.commands.target[0, shooter] = target
+
+
+def test_chasing_unit_switches_to_the_enemy_that_attacks_it():
+    # Marine 0 is 3 away (edge 2.125: out of melee reach, being chased); marine 1, 4.5 away (edge 3.625, inside the
+    # zealot's scan range), starts shooting it: the zealot turns on marine 1.
+    engine = _marine_zealot_marine((19.0, 16.0), (16.0, 20.5))
+    _order_attack(engine, 1, 2)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 1
+
+
+def test_alternating_aggro_pulls_the_zealot_back_and_forth():
+    # Marine 1 shoots while marine 0 runs; then marine 1 runs and marine 0 shoots: the zealot follows the shooter.
+    engine = _marine_zealot_marine((19.0, 16.0), (16.0, 20.5))
+    _order_attack(engine, 1, 2)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 1
+    engine.commands.clear()
+    engine.commands.kind[0, 1] = CMD_MOVE
+    engine.commands.x[0, 1], engine.commands.y[0, 1] = 16.0, 27.0
+    _order_attack(engine, 0, 2)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 0
+
+
+def test_chasing_unit_switches_to_a_closer_threat_but_keeps_its_target_on_a_tie():
+    # Neither marine attacks (both idle and passive): same rank, so the closer one wins; at equal distance the
+    # zealot keeps chasing the one it had.
+    closer = _marine_zealot_marine((19.0, 16.0), (16.0, 18.0))
+    closer.step(n_loops=1)
+    assert closer.state.target[0, 2] == 1
+    tie = _marine_zealot_marine((19.0, 16.0), (16.0, 19.0))
+    tie.step(n_loops=1)
+    assert tie.state.target[0, 2] == 0
+
+
+def test_target_in_weapon_range_is_kept_when_another_enemy_attacks():
+    # The zealot is hitting marine 0 (edge distance 0.05 <= 0.1); marine 1 shoots it from 4.5 away: the zealot
+    # keeps the marine in reach (a target that can hurt it is not dropped while in range).
+    engine = _marine_zealot_marine((16.925, 16.0), (16.0, 20.5))
+    _order_attack(engine, 1, 2)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 0
+
+
+def test_target_that_cannot_hurt_yields_to_an_attacker_in_weapon_range():
+    # A blue marine shooting a red medivac (in range, harmless) is shot by a red marine within its own weapon range
+    # (edge distance 4 <= 5): it turns on the marine. (The layout puts the red marine in slot 0, the medivac in 1.)
+    engine = engine_with(["Marine_RL", "Medivac_RL"], ["Marine"], {0: (16.0, 20.75), 1: (13.0, 16.0),
+                                                                   2: (16.0, 16.0)})
+    engine.place(0, 2, target=1)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 1  # nobody attacks it yet: it keeps shooting the medivac
+    _order_attack(engine, 0, 2)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 0
+
+
+def test_ordered_attack_never_switches():
+    # The same situation as the first test, but the zealot was ordered to attack marine 0: it keeps chasing it.
+    engine = _marine_zealot_marine((19.0, 16.0), (16.0, 20.5))
+    _order_attack(engine, 2, 0)
+    _order_attack(engine, 1, 2)
+    engine.step(n_loops=8)
+    assert engine.state.target[0, 2] == 0 and engine.state.order_target[0, 2] == 0
+
+
+def test_passive_learner_units_ignore_attackers_even_while_attack_moving_past_a_target():
+    # A red *_RL marine attack-moving engages the enemy in its scan range, but a hit from beyond that range (a
+    # stalker at edge distance 5.9) does not pull it: passive units never respond.
+    engine = engine_with(["Marine_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (10.0 + 5.9 + 0.375 + 0.625, 16.0)})
+    engine.commands.kind[0, 0] = CMD_ATTACK_MOVE
+    engine.commands.x[0, 0], engine.commands.y[0, 0] = 10.0, 4.0
+    engine.place(0, 1, target=0)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 0] == -1

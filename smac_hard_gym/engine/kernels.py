@@ -206,23 +206,40 @@ def _acquire_heal(i, side, alive, x, y, health, target, slot_stats):
 
 
 @inline
+def _threatens(slot_stats, j, i):
+    """Unit j has a weapon that can damage unit i (medivacs threaten nobody)."""
+    return slot_stats[j, _DAMAGE] > 0 and slot_stats[j, _WEAPON] != WEAPON_HEAL and _can_hit(slot_stats, j, i)
+
+
+@inline
+def _rank(i, j, target, slot_stats):
+    """SC2's acquisition priority of enemy j for unit i, best first: 0 j is attacking i, 1 j can hurt i, 2 other."""
+    if target[j] == i:
+        return 0
+    if _threatens(slot_stats, j, i):
+        return 1
+    return 2
+
+
+@inline
 def _scan(i, reach, responder, side, alive, x, y, target, attacker, slot_stats):
     """SC2's automatic acquisition: the best enemy for unit i, or NO_UNIT.
 
-    Ranks: an enemy within ``reach`` that is attacking i, then any enemy within reach, then (for units that respond)
-    the last enemy that hit i wherever it is; the closest (edge to edge) within a rank.
+    Among enemies within ``reach`` (edge to edge): those attacking i, then those that can hurt i, then the rest
+    (:func:`_rank`); the closest within a rank. Failing all, a unit that responds takes the last enemy that hit it,
+    wherever it is (rank 3).
     """
     best = NO_UNIT
-    best_rank = 3
+    best_rank = 4
     best_d = _INF
     for j in range(alive.shape[0]):
         if not alive[j] or side[j] == side[i] or not _can_hit(slot_stats, i, j):
             continue
         radii = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
         if _within(x[i], y[i], x[j], y[j], reach + radii):
-            rank = 0 if target[j] == i else 1
+            rank = _rank(i, j, target, slot_stats)
         elif responder and attacker[i] == j:
-            rank = 2
+            rank = 3
         else:
             continue
         if rank > best_rank:
@@ -236,13 +253,66 @@ def _scan(i, reach, responder, side, alive, x, y, target, attacker, slot_stats):
 
 
 @inline
-def _targeting(side, alive, x, y, health, order, order_target, target, attacker, slot_stats):
-    """Who each unit engages this loop.
+def _attacker_in_range(i, side, alive, x, y, target, slot_stats):
+    """The closest enemy that is attacking unit i from within i's weapon range, or NO_UNIT."""
+    best = NO_UNIT
+    best_d = _INF
+    for j in range(alive.shape[0]):
+        if not alive[j] or side[j] == side[i] or target[j] != i or not _can_hit(slot_stats, i, j):
+            continue
+        radii = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
+        if _within(x[i], y[i], x[j], y[j], slot_stats[i, _RANGE] + radii):
+            d = _edge_distance(x[i], y[i], x[j], y[j], radii)
+            if d < best_d:
+                best_d = d
+                best = j
+    return best
 
-    Ordered attacks and heals keep their target until it dies (then the order completes). Units that acquire keep a
-    valid target within their leash, else scan: idle and attack-moving units within ``scan_range`` (answering the
-    last unit that hit them), holding units within weapon range. Passive (*_RL) units acquire only while
-    attack-moving and never respond. Moving units acquire nothing.
+
+@inline
+def _acquire(i, o, passive, side, alive, x, y, target, attacker, slot_stats):
+    """SC2's target choice for a unit that acquires on its own (idle, attack-moving or holding); see ``_targeting``."""
+    hold = o == ORDER_HOLD
+    cur = target[i]
+    if cur >= 0 and alive[cur]:
+        radii = slot_stats[i, _RADIUS] + slot_stats[cur, _RADIUS]
+        if _within(x[i], y[i], x[cur], y[cur], slot_stats[i, _RANGE] + radii):
+            # In weapon range: keep it, unless it cannot hurt i and an enemy attacking i is in range too.
+            if not _threatens(slot_stats, cur, i):
+                j = _attacker_in_range(i, side, alive, x, y, target, slot_stats)
+                if j >= 0:
+                    target[i] = j
+            return
+        if not hold and _within(x[i], y[i], x[cur], y[cur], slot_stats[i, _SCAN] + _LEASH + radii):
+            # Chasing: re-acquire, and switch only to a better-ranked or (same rank) closer enemy.
+            best = _scan(i, slot_stats[i, _SCAN], not passive, side, alive, x, y, target, attacker, slot_stats)
+            if best >= 0 and best != cur:
+                cur_rank = _rank(i, cur, target, slot_stats)
+                best_rank = _rank(i, best, target, slot_stats)
+                if not _within(x[i], y[i], x[best], y[best],
+                               slot_stats[i, _SCAN] + slot_stats[i, _RADIUS] + slot_stats[best, _RADIUS]):
+                    best_rank = 3  # the responder's fallback: its last attacker, out of scan range
+                if best_rank < cur_rank or (best_rank == cur_rank and _edge_distance(
+                        x[i], y[i], x[best], y[best], slot_stats[i, _RADIUS] + slot_stats[best, _RADIUS])
+                        < _edge_distance(x[i], y[i], x[cur], y[cur], radii)):
+                    target[i] = best
+            return
+    reach = slot_stats[i, _RANGE] if hold else slot_stats[i, _SCAN]
+    target[i] = _scan(i, reach, (not passive) and not hold, side, alive, x, y, target, attacker, slot_stats)
+
+
+@inline
+def _targeting(side, alive, x, y, health, order, order_target, target, attacker, slot_stats):
+    """Who each unit engages this loop (SC2's rules; docs/engine_targeting.md lists each rule with its source).
+
+    - Ordered attacks and heals keep their target until it dies (then the order completes): no switching.
+    - Moving units acquire nothing. Passive (SMAC's ``*_RL``) units acquire only while attack-moving, never respond.
+    - Units that acquire (idle, attack-moving, holding): a target in weapon range is kept, except that a target that
+      cannot hurt the unit yields to an enemy attacking it from within weapon range. A target out of weapon range is
+      chased (not on hold) while the unit re-acquires every loop: it switches to an enemy attacking it, else to one
+      that can hurt it, else to any enemy in scan range, and within a rank to a closer one (ties keep the chase).
+      Without a target: the best enemy within scan range (weapon range on hold); a responder (not passive, not on
+      hold) then answers the last enemy that hit it, wherever it is.
     """
     for i in range(alive.shape[0]):
         if not alive[i]:
@@ -262,14 +332,7 @@ def _targeting(side, alive, x, y, health, order, order_target, target, attacker,
         elif slot_stats[i, _WEAPON] == WEAPON_HEAL:
             _acquire_heal(i, side, alive, x, y, health, target, slot_stats)
         elif slot_stats[i, _DAMAGE] > 0:
-            hold = o == ORDER_HOLD
-            reach = slot_stats[i, _RANGE] if hold else slot_stats[i, _SCAN]
-            cur = target[i]
-            keep = reach if hold else reach + _LEASH
-            if cur >= 0 and alive[cur] and _within(
-                    x[i], y[i], x[cur], y[cur], keep + slot_stats[i, _RADIUS] + slot_stats[cur, _RADIUS]):
-                continue
-            target[i] = _scan(i, reach, (not passive) and not hold, side, alive, x, y, target, attacker, slot_stats)
+            _acquire(i, o, passive, side, alive, x, y, target, attacker, slot_stats)
 
 
 # ---------------------------------------------------------------------------------------------------------------
