@@ -11,11 +11,8 @@ from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import (
     BLUE,
     CMD_ATTACK,
-    CMD_ATTACK_MOVE,
     CMD_HEAL,
     CMD_MOVE,
-    CMD_NOOP,
-    ORDER_ATTACK_MOVE,
     RED,
     Commands,
 )
@@ -152,47 +149,6 @@ def _time_in_zealot_reach(red: str, steps: int = 40) -> int:
 def test_kite_keeps_stalkers_out_of_zealot_reach_longer_than_nearest():
     kite, nearest = _time_in_zealot_reach("kite"), _time_in_zealot_reach("nearest")
     assert kite < nearest, (kite, nearest)
-
-
-def test_base_attack_moves_to_the_learner_spawn_then_lets_automatic_targeting_retarget():
-    battle = Battle("3m", red="stop", blue="base")
-    battle.reset_scripts()
-    n = battle.n_red
-    battle.act()
-    np.testing.assert_array_equal(battle.commands.kind[0, n:], [CMD_ATTACK_MOVE] * 3)
-    np.testing.assert_allclose(battle.commands.x[0, n:], 9.0)  # SMAC: attack-move to "Team 1" (9, 16)
-    np.testing.assert_allclose(battle.commands.y[0, n:], 16.0)
-    battle.engine.step(battle.commands, battle.active)
-    battle.steps += 1
-    st = battle.state
-    assert (st.order[0, n:] == ORDER_ATTACK_MOVE).all()
-    targets_seen: set[int] = set()
-    for _ in range(60):
-        battle.act()
-        assert (battle.commands.kind[0, n:] == CMD_NOOP).all()  # after the first step base sends nothing
-        battle.engine.step(battle.commands, battle.active)
-        battle.steps += 1
-        tgt = st.target[0, n:][st.alive[0, n:]]
-        for t in tgt[tgt >= 0]:
-            assert st.alive[0, t] and t < n  # engaged targets are alive learner units
-            targets_seen.add(int(t))
-        if not st.alive[0, :n].any():
-            break
-    assert not st.alive[0, :n].any()
-    assert len(targets_seen) == 3  # after each kill the blue marines took a new target
-
-
-def test_base_on_2m_vs_1z_attack_moves_to_a_seeded_point_between_the_marines():
-    battle = Battle("2m_vs_1z", red="stop", blue="base", batch=3)
-    battle.reset_scripts()
-    battle.act()
-    x, y = battle.commands.x[:, 2], battle.commands.y[:, 2]
-    np.testing.assert_allclose(y, 12.0)  # the segment (13, 12) - (19, 12)
-    assert ((x >= 13.0) & (x <= 19.0)).all() and len(set(np.round(x, 6))) == 3
-    again = Battle("2m_vs_1z", red="stop", blue="base", batch=3)
-    again.reset_scripts()
-    again.act()
-    np.testing.assert_array_equal(again.commands.x[:, 2], x)  # same seeds, same points
 
 
 def test_weakest_spine_crawler_only_targets_stalkers_in_reach():

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+BASE_OPPONENTS = ("smac", "base")  # SMAC's one-player behaviour and SMAC-HARD's base_script
+
 HELP = "list the built-in opponent scripts (all, or those that play one map) and the per-map pools"
 
 
@@ -42,11 +44,15 @@ def run(args: argparse.Namespace) -> int:
         for name, info in scripts.items():
             mark = "*" if name in cat["default"] else " "
             print(f" {mark} {name:<{width}}{info['description']}")
-        print("(* in the default pool; also accepted: default, blackbox, 'file.py[:Class]', 'module:Name')")
+        print("(* in the default pool; smac = SMAC's opponent, base = SMAC-HARD's; also accepted: default, blackbox, "
+              "'file.py[:Class]', 'module:Name')")
         return 0
+    print("the two base opponents (every map; not the same behaviour):")
+    for name in BASE_OPPONENTS:
+        print(f"  {name:<{width}}{scripts[name]['description']}")
     print("generic scripts (every map):")
     for name, info in scripts.items():
-        if info["maps"] is None:
+        if info["maps"] is None and name not in BASE_OPPONENTS:
             print(f"  {name:<{width}}{info['description']}")
     print("map scripts (SMAC-HARD strategies):")
     for name, info in scripts.items():
