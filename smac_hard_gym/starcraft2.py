@@ -44,7 +44,8 @@ class StarCraft2Env:
 
         - ``mode``: ``"script"`` (default) or ``"self-play"``; ``"single"`` / ``"multi"`` are accepted.
         - ``opponent``: a script name, a Script object, or anything ``opponents.make_opponent`` accepts
-          (default ``"smac"``: SMAC's own opponent; ``"base"`` is SMAC-HARD's); ``opponent_probs``: weights of a list of scripts.
+          (default ``"smac"``: SMAC's own opponent; ``"base"`` is SMAC-HARD's); ``opponent_probs``: weights of a
+          list of scripts.
           ``strategy_prob`` (SMAC-HARD) gives weights over the map's default pool (``opponent="default"``).
         - ``backend``: ``"native"`` (embedded engine) or ``"sc2"``; ``backend_options``: passed to it.
 

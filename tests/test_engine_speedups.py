@@ -40,22 +40,22 @@ def test_sort_by_x_orders_slots_by_position_then_slot():
         assert key.tolist() == x[expected].tolist()
 
 
-def _reference_pass(names, alive, hold, x, y):
-    """One separation pass by the documented rule (valid when no unit overlaps two others: then order is moot)."""
-    x, y = x.copy(), y.copy()
+def _reference_pass(names, alive, hold, x0, y0):
+    """One separation pass by the documented rule: every push read from the positions when the pass began."""
+    x, y = x0.copy(), y0.copy()
     deepest = 0.0
     n = len(names)
     for i in range(n):
         for j in range(i + 1, n):
             if not (alive[i] and alive[j]) or PLANE[names[i]] != PLANE[names[j]]:
                 continue
-            dist = math.hypot(x[j] - x[i], y[j] - y[i])
+            dist = math.hypot(x0[j] - x0[i], y0[j] - y0[i])
             depth = RADIUS[names[i]] + RADIUS[names[j]] - dist
             free_i = not hold[i] and names[i] not in ROOTED
             free_j = not hold[j] and names[j] not in ROOTED
             if depth <= 0 or not (free_i or free_j):
                 continue
-            ux, uy = (x[j] - x[i]) / dist, (y[j] - y[i]) / dist
+            ux, uy = (x0[j] - x0[i]) / dist, (y0[j] - y0[i]) / dist
             share_i = depth * (0.5 if free_j else 1.0) if free_i else 0.0
             share_j = depth - share_i
             x[i], y[i] = x[i] - ux * share_i, y[i] - uy * share_i
@@ -101,7 +101,9 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     key = np.zeros(len(names))
     expected_x, expected_y, expected_worst = _reference_pass(names, alive, hold, x, y)
     got_x, got_y = x.copy(), y.copy()
-    worst = _separation(alive, got_x, got_y, order, slot_stats, walk, by_x, key, slot_stats[:, S["radius"]].max())
+    scratch_x, scratch_y = np.zeros(len(names)), np.zeros(len(names))
+    worst = _separation(alive, got_x, got_y, scratch_x, scratch_y, order, slot_stats, walk, by_x, key,
+                        slot_stats[:, S["radius"]].max())
     np.testing.assert_allclose(got_x, expected_x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got_y, expected_y, rtol=0, atol=1e-12)
     assert worst == pytest.approx(expected_worst, abs=1e-12)
@@ -117,9 +119,9 @@ def test_sweep_passes_clear_a_dense_crowd():
     slot_stats = np.ascontiguousarray(STATS[[unit_index("marine")] * n])
     walk = np.ones((2, 64, 64), dtype=np.uint8)
     alive, order = np.ones(n, dtype=bool), np.zeros(n, dtype=np.int8)
-    by_x, key = np.arange(n, dtype=np.int32), np.zeros(n)
+    by_x, key, scratch_x, scratch_y = np.arange(n, dtype=np.int32), np.zeros(n), np.zeros(n), np.zeros(n)
     for _ in range(400):
-        if _separation(alive, x, y, order, slot_stats, walk, by_x, key, 0.375) < 1e-6:
+        if _separation(alive, x, y, scratch_x, scratch_y, order, slot_stats, walk, by_x, key, 0.375) < 1e-6:
             break
     dist = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) + np.eye(n) * 10
     assert dist.min() > 0.75 - 1e-5

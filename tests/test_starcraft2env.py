@@ -61,13 +61,13 @@ def test_pymarl_style_loop():
     for _ in range(2):
         episode_return, step_info = pymarl_episode(env, rng, cur_stats)
         assert set(step_info) == {"battle_won", "dead_allies", "dead_enemies"}
-        assert env.get_opponent_name() == "base"
+        assert env.get_opponent_name() == "smac"  # the drop-in's default: SMAC's own opponent
         assert 0.0 <= episode_return <= 20.0 + 1e-4
     assert cur_stats["dead_allies"] + cur_stats["dead_enemies"] > 0
     stats = env.get_stats()
     assert stats["battles_game"] == 2
     assert {"battles_won", "battles_game", "battles_draw", "win_rate", "timeouts", "restarts"} <= set(stats)
-    assert stats["opponents"]["base"]["games"] == 2
+    assert stats["opponents"]["smac"]["games"] == 2
     env.close()
     env.close()
 

@@ -90,6 +90,11 @@ class BattleEngine:
         # Separation's sweep: each battle's slots in x order (kept between steps, so nearly sorted) and sort keys.
         self._by_x = np.tile(np.arange(self.n_units, dtype=np.int32), (self.batch_size, 1))
         self._sort_key = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
+        # Targeting's snapshot of every unit's target at the start of a loop ("who is attacking me").
+        self._engaged = np.zeros((self.batch_size, self.n_units), dtype=np.int32)
+        # Movement's snapshot of positions at the start of the phase (units move simultaneously).
+        self._x0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
+        self._y0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
         self._next_battle = np.zeros(1, dtype=np.int64)  # the parallel kernel's shared work counter
         self.commands = Commands.empty(self.batch_size, self.n_units)
         self._all_active = np.ones(self.batch_size, dtype=np.bool_)
@@ -144,7 +149,7 @@ class BattleEngine:
         t = self.terrain
         args = (self.state, cmd.kind, cmd.target, cmd.x, cmd.y, self._slot_stats, t.walk, t.next_hop, t.los,
                 t.open_field, self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter,
-                self._by_x, self._sort_key)
+                self._by_x, self._sort_key, self._engaged, self._x0, self._y0)
         if self.batch_size >= PARALLEL_MIN_BATCH:
             step_batch(*args, numba.get_num_threads(), self._next_battle)
         else:

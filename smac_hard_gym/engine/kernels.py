@@ -212,9 +212,13 @@ def _threatens(slot_stats, j, i):
 
 
 @inline
-def _rank(i, j, target, slot_stats):
-    """SC2's acquisition priority of enemy j for unit i, best first: 0 j is attacking i, 1 j can hurt i, 2 other."""
-    if target[j] == i:
+def _rank(i, j, engaged, slot_stats):
+    """SC2's acquisition priority of enemy j for unit i, best first: 0 j is attacking i, 1 j can hurt i, 2 other.
+
+    ``engaged`` is every unit's target when the loop began, so the answer does not depend on which of the two units
+    has the lower slot (both sides acquire from the same snapshot).
+    """
+    if engaged[j] == i:
         return 0
     if _threatens(slot_stats, j, i):
         return 1
@@ -222,7 +226,7 @@ def _rank(i, j, target, slot_stats):
 
 
 @inline
-def _scan(i, reach, responder, side, alive, x, y, target, attacker, slot_stats):
+def _scan(i, reach, responder, side, alive, x, y, engaged, attacker, slot_stats):
     """SC2's automatic acquisition: the best enemy for unit i, or NO_UNIT.
 
     Among enemies within ``reach`` (edge to edge): those attacking i, then those that can hurt i, then the rest
@@ -237,7 +241,7 @@ def _scan(i, reach, responder, side, alive, x, y, target, attacker, slot_stats):
             continue
         radii = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
         if _within(x[i], y[i], x[j], y[j], reach + radii):
-            rank = _rank(i, j, target, slot_stats)
+            rank = _rank(i, j, engaged, slot_stats)
         elif responder and attacker[i] == j:
             rank = 3
         else:
@@ -253,12 +257,12 @@ def _scan(i, reach, responder, side, alive, x, y, target, attacker, slot_stats):
 
 
 @inline
-def _attacker_in_range(i, side, alive, x, y, target, slot_stats):
-    """The closest enemy that is attacking unit i from within i's weapon range, or NO_UNIT."""
+def _attacker_in_range(i, side, alive, x, y, engaged, slot_stats):
+    """The closest enemy that was attacking unit i (loop-start snapshot) from within i's weapon range, or NO_UNIT."""
     best = NO_UNIT
     best_d = _INF
     for j in range(alive.shape[0]):
-        if not alive[j] or side[j] == side[i] or target[j] != i or not _can_hit(slot_stats, i, j):
+        if not alive[j] or side[j] == side[i] or engaged[j] != i or not _can_hit(slot_stats, i, j):
             continue
         radii = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
         if _within(x[i], y[i], x[j], y[j], slot_stats[i, _RANGE] + radii):
@@ -270,7 +274,7 @@ def _attacker_in_range(i, side, alive, x, y, target, slot_stats):
 
 
 @inline
-def _acquire(i, o, passive, side, alive, x, y, target, attacker, slot_stats):
+def _acquire(i, o, passive, side, alive, x, y, target, engaged, attacker, slot_stats):
     """SC2's target choice for a unit that acquires on its own (idle, attack-moving or holding); see ``_targeting``."""
     hold = o == ORDER_HOLD
     cur = target[i]
@@ -279,16 +283,16 @@ def _acquire(i, o, passive, side, alive, x, y, target, attacker, slot_stats):
         if _within(x[i], y[i], x[cur], y[cur], slot_stats[i, _RANGE] + radii):
             # In weapon range: keep it, unless it cannot hurt i and an enemy attacking i is in range too.
             if not _threatens(slot_stats, cur, i):
-                j = _attacker_in_range(i, side, alive, x, y, target, slot_stats)
+                j = _attacker_in_range(i, side, alive, x, y, engaged, slot_stats)
                 if j >= 0:
                     target[i] = j
             return
         if not hold and _within(x[i], y[i], x[cur], y[cur], slot_stats[i, _SCAN] + _LEASH + radii):
             # Chasing: re-acquire, and switch only to a better-ranked or (same rank) closer enemy.
-            best = _scan(i, slot_stats[i, _SCAN], not passive, side, alive, x, y, target, attacker, slot_stats)
+            best = _scan(i, slot_stats[i, _SCAN], not passive, side, alive, x, y, engaged, attacker, slot_stats)
             if best >= 0 and best != cur:
-                cur_rank = _rank(i, cur, target, slot_stats)
-                best_rank = _rank(i, best, target, slot_stats)
+                cur_rank = _rank(i, cur, engaged, slot_stats)
+                best_rank = _rank(i, best, engaged, slot_stats)
                 if not _within(x[i], y[i], x[best], y[best],
                                slot_stats[i, _SCAN] + slot_stats[i, _RADIUS] + slot_stats[best, _RADIUS]):
                     best_rank = 3  # the responder's fallback: its last attacker, out of scan range
@@ -298,11 +302,11 @@ def _acquire(i, o, passive, side, alive, x, y, target, attacker, slot_stats):
                     target[i] = best
             return
     reach = slot_stats[i, _RANGE] if hold else slot_stats[i, _SCAN]
-    target[i] = _scan(i, reach, (not passive) and not hold, side, alive, x, y, target, attacker, slot_stats)
+    target[i] = _scan(i, reach, (not passive) and not hold, side, alive, x, y, engaged, attacker, slot_stats)
 
 
 @inline
-def _targeting(side, alive, x, y, health, order, order_target, target, attacker, slot_stats):
+def _targeting(side, alive, x, y, health, order, order_target, target, engaged, attacker, slot_stats):
     """Who each unit engages this loop (SC2's rules; docs/engine_targeting.md lists each rule with its source).
 
     - Ordered attacks and heals keep their target until it dies (then the order completes): no switching.
@@ -313,8 +317,13 @@ def _targeting(side, alive, x, y, health, order, order_target, target, attacker,
       that can hurt it, else to any enemy in scan range, and within a rank to a closer one (ties keep the chase).
       Without a target: the best enemy within scan range (weapon range on hold); a responder (not passive, not on
       hold) then answers the last enemy that hit it, wherever it is.
+
+    "Attacking it" is read from ``engaged``, a snapshot of the targets taken here before anyone re-acquires.
     """
-    for i in range(alive.shape[0]):
+    n = alive.shape[0]
+    for i in range(n):
+        engaged[i] = target[i]
+    for i in range(n):
         if not alive[i]:
             continue
         o = order[i]
@@ -332,7 +341,7 @@ def _targeting(side, alive, x, y, health, order, order_target, target, attacker,
         elif slot_stats[i, _WEAPON] == WEAPON_HEAL:
             _acquire_heal(i, side, alive, x, y, health, target, slot_stats)
         elif slot_stats[i, _DAMAGE] > 0:
-            _acquire(i, o, passive, side, alive, x, y, target, attacker, slot_stats)
+            _acquire(i, o, passive, side, alive, x, y, target, engaged, attacker, slot_stats)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -387,8 +396,18 @@ def _slide(px, py, nx, ny, mover, walk):
 
 
 @inline
-def _movement(alive, x, y, order, order_x, order_y, target, slot_stats, walk, next_hop, los, open_field):
-    for i in range(alive.shape[0]):
+def _movement(alive, x, y, x0, y0, order, order_x, order_y, target, slot_stats, walk, next_hop, los, open_field):
+    """Every unit steps toward its target (unless in range) or its order point.
+
+    Simultaneous: whether a unit is in range and where its target stands are read from ``x0, y0``, the positions
+    when the phase began. Read live, the lower slots (red) would move first and the higher slots would find the gap
+    already closed, so red always advanced further than blue in a mirrored fight.
+    """
+    n = alive.shape[0]
+    for i in range(n):
+        x0[i] = x[i]
+        y0[i] = y[i]
+    for i in range(n):
         if not alive[i]:
             continue
         speed = slot_stats[i, _SPEED]
@@ -397,9 +416,10 @@ def _movement(alive, x, y, order, order_x, order_y, target, slot_stats, walk, ne
             continue
         j = target[i]
         if j >= 0:
-            if _within(x[i], y[i], x[j], y[j], slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
+            if _within(x0[i], y0[i], x0[j], y0[j],
+                       slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
                 continue  # in range: stand and act
-            gx, gy = x[j], y[j]
+            gx, gy = x0[j], y0[j]
         elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
             gx, gy = order_x[i], order_y[i]
             dx, dy = gx - x[i], gy - y[i]
@@ -448,15 +468,15 @@ def _sort_by_x(by_x, key, x):
 
 
 @inline
-def _push_apart(i, j, x, y, order, slot_stats, walk):
-    """If alive units i < j of the same plane overlap, push them apart and return the depth (else 0).
+def _push_apart(i, j, x, y, x0, y0, order, slot_stats):
+    """If alive units i and j of the same plane overlapped when the pass began (``x0, y0``), add their pushes apart to
+    ``x, y`` and return the depth (else 0).
 
-    Units on hold or rooted are not pushed; a movable unit takes the whole push from an unmovable one. Unit i moves
-    first; what a wall stops it from taking, j takes.
+    Units on hold or rooted are not pushed; a movable unit takes the whole push from an unmovable one.
     """
     rr = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
-    dx = x[j] - x[i]
-    dy = y[j] - y[i]
+    dx = x0[j] - x0[i]
+    dy = y0[j] - y0[i]
     d2 = dx * dx + dy * dy
     if d2 >= rr * rr or slot_stats[j, _MOVER] != slot_stats[i, _MOVER]:
         return 0.0
@@ -465,36 +485,42 @@ def _push_apart(i, j, x, y, order, slot_stats, walk):
     if wi + wj == 0.0:
         return 0.0
     d = math.sqrt(d2)
-    if d < 1e-9:  # exactly stacked: split along a fixed, index-dependent direction
-        angle = 2.399963229728653 * (i * 31 + j)
+    if d < 1e-9:  # exactly stacked: split along a fixed direction that depends on the pair, not on its order
+        angle = 2.399963229728653 * (min(i, j) * 31 + max(i, j))
         ux, uy = math.cos(angle), math.sin(angle)
+        if i > j:
+            ux, uy = -ux, -uy
     else:
         ux, uy = dx / d, dy / d
     overlap = rr - d
-    mover = int(slot_stats[i, _MOVER])
-    si = overlap * wi / (wi + wj)
-    if si > 0.0:
-        xi, yi = x[i], y[i]
-        x[i], y[i] = _slide(xi, yi, xi - ux * si, yi - uy * si, mover, walk)
-        si = (xi - x[i]) * ux + (yi - y[i]) * uy  # what a wall let it move
-    if wj > 0.0 and overlap - si > 0.0:  # j takes the rest of the push
-        sj = overlap - si
-        x[j], y[j] = _slide(x[j], y[j], x[j] + ux * sj, y[j] + uy * sj, mover, walk)
+    share_i = overlap * wi / (wi + wj)
+    share_j = overlap - share_i
+    x[i] -= ux * share_i
+    y[i] -= uy * share_i
+    x[j] += ux * share_j
+    y[j] += uy * share_j
     return overlap
 
 
 @inline
-def _separation(alive, x, y, order, slot_stats, walk, by_x, key, max_radius):
+def _separation(alive, x, y, x0, y0, order, slot_stats, walk, by_x, key, max_radius):
     """One pass of pushes over every pair that overlaps when the pass begins; returns the deepest overlap pushed
     (0: nothing moved).
 
+    Simultaneous (Jacobi): every push is computed from the positions when the pass began (``x0, y0``, scratch) and the
+    pushes a unit receives add up; then each unit slides from where it was toward its pushed position, stopping at
+    walls. Pushes applied one pair after another (Gauss-Seidel) favour the units met first, and in a mirrored fight
+    that decided battles: blue lost 2s3z 64-0 to red with the same script on both sides.
+
     Sweep and prune: with the units sorted by x, unit i's partners lie within ``radius_i + max_radius`` further
     along the sorted list, so the pass stops looking at the first unit beyond that (27 marines against 30: about 4
-    pairs per unit instead of 28). Pairs are pushed as they are met, so a push can create an overlap that the next
-    loop's pass resolves, as in an all-pairs pass.
+    pairs per unit instead of 28).
     """
     _sort_by_x(by_x, key, x)
     n = by_x.shape[0]
+    for i in range(n):
+        x0[i] = x[i]
+        y0[i] = y[i]
     worst = 0.0
     for a in range(n):
         i = by_x[a]
@@ -505,8 +531,12 @@ def _separation(alive, x, y, order, slot_stats, walk, by_x, key, max_radius):
             if key[c] - key[a] >= window:
                 break
             j = by_x[c]
-            if alive[j]:  # a pair is pushed the same way whichever of the two comes first in x
-                worst = max(worst, _push_apart(min(i, j), max(i, j), x, y, order, slot_stats, walk))
+            if alive[j]:
+                worst = max(worst, _push_apart(i, j, x, y, x0, y0, order, slot_stats))
+    if worst > 0.0:
+        for i in range(n):
+            if x[i] != x0[i] or y[i] != y0[i]:
+                x[i], y[i] = _slide(x0[i], y0[i], x[i], y[i], int(slot_stats[i, _MOVER]), walk)
     return worst
 
 
@@ -606,6 +636,7 @@ def _uniform(rng):
 @inline
 def _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
              fired_at, burst, slot_stats, rng, jitter_lo, jitter_hi):
+    heals = False
     for i in range(alive0.shape[0]):
         if not alive0[i]:
             continue
@@ -617,7 +648,7 @@ def _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, 
             continue
         weapon = slot_stats[i, _WEAPON]
         if weapon == WEAPON_HEAL:
-            _heal(i, j, health, energy, fired_at, slot_stats)
+            heals = True
         elif weapon == WEAPON_BURST:
             _burst(i, side, alive0, x, y, health, shield, shield_wait, attacker, burst, slot_stats)
         elif cooldown[i] <= 0.0:
@@ -631,6 +662,16 @@ def _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, 
             if jitter_hi > jitter_lo:  # SC2 adds a random delay to every attack
                 cooldown[i] += jitter_lo + (jitter_hi - jitter_lo) * _uniform(rng)
             fired_at[i] = j
+    # Heals land after every shot of the loop, so a unit killed this loop stays dead and a heal never depends on
+    # whether the medivac's slot comes before or after the shooters' (red's medivac healed before blue fired, blue's
+    # after red fired: the same fight went differently for the two sides).
+    if heals:
+        for i in range(alive0.shape[0]):
+            if alive0[i] and slot_stats[i, _WEAPON] == WEAPON_HEAL:
+                j = target[i]
+                reach = slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + (slot_stats[j, _RADIUS] if j >= 0 else 0.0)
+                if j >= 0 and alive0[j] and health[j] > 0.0 and _within(x[i], y[i], x[j], y[j], reach):
+                    _heal(i, j, health, energy, fired_at, slot_stats)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -654,13 +695,14 @@ def _deaths(alive, health, shield, order, target):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, jitter,
-                by_x, key):
+                by_x, key, engaged, x0, y0):
     """Apply battle b's commands, then run ``n_loops`` game loops on it.
 
     ``slot_stats`` (U, columns) is the unit table row of each slot. ``jitter`` = (low, high): each attack's cooldown
     gets a uniform random delay in [low, high) loops; (0, 0) for none. ``by_x`` (B, U) int32 holds each battle's
     slots ordered by x (any permutation will do; kept between steps because it is then nearly sorted) and ``key``
-    (B, U) float64 is scratch for the sort.
+    (B, U) float64 is scratch for the sort; ``engaged`` (B, U) int32 and ``x0``, ``y0`` (B, U) float64 are scratch for
+    targeting's and movement's snapshots (simultaneous decisions, independent of slot order).
     """
     rng = st.rng[b:b + 1]
     jitter_lo, jitter_hi = jitter[0], jitter[1]
@@ -669,7 +711,7 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
     cooldown, shield_wait = st.cooldown[b], st.shield_wait[b]
     order, order_target, order_x, order_y = st.order[b], st.order_target[b], st.order_x[b], st.order_y[b]
     target, attacker, fired_at, burst = st.target[b], st.attacker[b], st.fired_at[b], st.burst[b]
-    order_by_x, sort_key = by_x[b], key[b]
+    order_by_x, sort_key, engaged_at_loop, x_at_loop, y_at_loop = by_x[b], key[b], engaged[b], x0[b], y0[b]
     max_radius = 0.0
     for i in range(slot_stats.shape[0]):
         max_radius = max(max_radius, slot_stats[i, _RADIUS])
@@ -678,9 +720,11 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
                     kind[b], cmd_target[b], cmd_x[b], cmd_y[b], slot_stats)
     for _ in range(n_loops):
         _timers(alive, alive0, health, shield, energy, cooldown, shield_wait, slot_stats)
-        _targeting(side, alive, x, y, health, order, order_target, target, attacker, slot_stats)
-        _movement(alive, x, y, order, order_x, order_y, target, slot_stats, walk, next_hop, los, open_field)
-        worst = _separation(alive, x, y, order, slot_stats, walk, order_by_x, sort_key, max_radius)
+        _targeting(side, alive, x, y, health, order, order_target, target, engaged_at_loop, attacker, slot_stats)
+        _movement(alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats, walk, next_hop, los,
+                  open_field)
+        worst = _separation(alive, x, y, x_at_loop, y_at_loop, order, slot_stats, walk, order_by_x, sort_key,
+                            max_radius)
         _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
                  fired_at, burst, slot_stats, rng, jitter_lo, jitter_hi)
         _deaths(alive, health, shield, order, target)
@@ -688,14 +732,15 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
     # the last pass pushed nothing, nothing has moved since, and a settling pass would push nothing either.
     if worst > 0.0:
         for _ in range(_SETTLE_PASSES):
-            if _separation(alive, x, y, order, slot_stats, walk, order_by_x, sort_key, max_radius) < _SETTLED:
+            if _separation(alive, x, y, x_at_loop, y_at_loop, order, slot_stats, walk, order_by_x, sort_key,
+                           max_radius) < _SETTLED:
                 break
     st.loop[b] += n_loops
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, active,
-               jitter, by_x, key, workers, next_battle):
+               jitter, by_x, key, engaged, x0, y0, workers, next_battle):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``.
 
     One prange iteration per worker thread (``workers``: numba's thread count); each takes chunks of battles from
@@ -712,14 +757,14 @@ def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, l
             for b in range(start, min(start + chunk, n_battles)):
                 if active[b]:
                     step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                                n_loops, jitter, by_x, key)
+                                n_loops, jitter, by_x, key, engaged, x0, y0)
 
 
 @njit(cache=True, error_model="numpy")
 def step_batch_serial(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                      active, jitter, by_x, key):
+                      active, jitter, by_x, key, engaged, x0, y0):
     """``step_batch`` on the calling thread: small batches would pay more to wake the thread pool than they gain."""
     for b in range(st.alive.shape[0]):
         if active[b]:
             step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                        jitter, by_x, key)
+                        jitter, by_x, key, engaged, x0, y0)
