@@ -105,6 +105,29 @@ def test_chasing_unit_switches_to_the_enemy_that_attacks_it():
     assert engine.state.target[0, 2] == 1
 
 
+def test_a_chased_target_that_also_attacks_keeps_the_chase_against_a_farther_shooter():
+    # Both marines shoot the zealot; marine 0 (being chased, 3 away) is closer than marine 1 (5.5 away): no switch.
+    engine = _marine_zealot_marine((19.0, 16.0), (16.0, 21.5))
+    _order_attack(engine, 0, 2)
+    _order_attack(engine, 1, 2)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 0
+
+
+def test_an_attack_moving_unit_does_not_turn_on_a_shooter_beyond_its_scan_range():
+    # SC2's Response belongs to idle units: a zergling carrying out an attack-move keeps walking to its point when a
+    # stalker shoots it from 5.8 edge to edge (inside the stalker's range 6, beyond the zergling's scan range 5).
+    engine = engine_with(["Stalker_RL"], ["Zergling"], {0: (10.0, 10.0), 1: (10.0 + 5.8 + 0.625 + 0.375, 10.0)})
+    engine.commands.kind[0, 0] = CMD_ATTACK
+    engine.commands.target[0, 0] = 1
+    engine.commands.kind[0, 1] = CMD_ATTACK_MOVE
+    engine.commands.x[0, 1], engine.commands.y[0, 1] = 16.8, 30.0
+    engine.step()
+    assert engine.state.health[0, 1] < 35.0  # it was hit
+    assert engine.state.target[0, 1] == -1  # and does not answer
+    assert engine.state.x[0, 1] == pytest.approx(16.8) and engine.state.y[0, 1] > 10.5  # walking on to its point
+
+
 def test_alternating_aggro_pulls_the_zealot_back_and_forth():
     # Marine 1 shoots while marine 0 runs; then marine 1 runs and marine 0 shoots: the zealot follows the shooter.
     engine = _marine_zealot_marine((19.0, 16.0), (16.0, 20.5))

@@ -277,6 +277,10 @@ def _attacker_in_range(i, side, alive, x, y, engaged, slot_stats):
 def _acquire(i, o, passive, side, alive, x, y, target, engaged, attacker, slot_stats):
     """SC2's target choice for a unit that acquires on its own (idle, attack-moving or holding); see ``_targeting``."""
     hold = o == ORDER_HOLD
+    # SC2's Response (turn on an attacker beyond scan range) is how an idle unit reacts; a unit carrying out an
+    # attack-move keeps to its order and engages only what it acquires, so SMAC-HARD's base, re-issuing its order
+    # every step, cannot be pulled away one unit at a time, while SMAC's opponent, idle at its point, can.
+    responder = (not passive) and o == ORDER_IDLE
     cur = target[i]
     if cur >= 0 and alive[cur]:
         radii = slot_stats[i, _RADIUS] + slot_stats[cur, _RADIUS]
@@ -289,7 +293,7 @@ def _acquire(i, o, passive, side, alive, x, y, target, engaged, attacker, slot_s
             return
         if not hold and _within(x[i], y[i], x[cur], y[cur], slot_stats[i, _SCAN] + _LEASH + radii):
             # Chasing: re-acquire, and switch only to a better-ranked or (same rank) closer enemy.
-            best = _scan(i, slot_stats[i, _SCAN], not passive, side, alive, x, y, engaged, attacker, slot_stats)
+            best = _scan(i, slot_stats[i, _SCAN], responder, side, alive, x, y, engaged, attacker, slot_stats)
             if best >= 0 and best != cur:
                 cur_rank = _rank(i, cur, engaged, slot_stats)
                 best_rank = _rank(i, best, engaged, slot_stats)
@@ -302,7 +306,7 @@ def _acquire(i, o, passive, side, alive, x, y, target, engaged, attacker, slot_s
                     target[i] = best
             return
     reach = slot_stats[i, _RANGE] if hold else slot_stats[i, _SCAN]
-    target[i] = _scan(i, reach, (not passive) and not hold, side, alive, x, y, engaged, attacker, slot_stats)
+    target[i] = _scan(i, reach, responder, side, alive, x, y, engaged, attacker, slot_stats)
 
 
 @inline
@@ -315,8 +319,8 @@ def _targeting(side, alive, x, y, health, order, order_target, target, engaged, 
       cannot hurt the unit yields to an enemy attacking it from within weapon range. A target out of weapon range is
       chased (not on hold) while the unit re-acquires every loop: it switches to an enemy attacking it, else to one
       that can hurt it, else to any enemy in scan range, and within a rank to a closer one (ties keep the chase).
-      Without a target: the best enemy within scan range (weapon range on hold); a responder (not passive, not on
-      hold) then answers the last enemy that hit it, wherever it is.
+      Without a target: the best enemy within scan range (weapon range on hold); a responder (not passive, idle: no
+      order) then answers the last enemy that hit it, wherever it is.
 
     "Attacking it" is read from ``engaged``, a snapshot of the targets taken here before anyone re-acquires.
     """
