@@ -36,13 +36,14 @@ from smac_hard_gym.engine.state import (
     Commands,
 )
 from smac_hard_gym.maps import MapSpec
-from smac_hard_gym.opponents.api import Script, SideView
+from smac_hard_gym.opponents.api import RED, Script, SideView
 from smac_hard_gym.units import BIO, STATS, UNITS, WEAPON_HEAL, S
 
 __all__ = [
     "CAN_HIT", "Frame", "Memory", "Orders", "nearest", "lowest", "argmin_masked", "within", "centroid",
     "toward", "away", "unit_vector", "line_points", "arc_points", "is_pathable", "to_pathable", "clamp_to_map",
     "retreat_points", "support_healers", "threatened", "BatchScript", "of_kind", "slots_of", "across_rank",
+    "from_blue_frame", "weakest_of_nearest", "list_rank",
 ]
 
 
@@ -58,6 +59,7 @@ CAN_HIT: np.ndarray = _can_hit_table()
 _HEALER = STATS[:, S["weapon"]] == WEAPON_HEAL
 _BASE_NAMES = np.array([u.base for u in UNITS])
 _HP_MAX = STATS[:, S["health"]] + STATS[:, S["shield"]]
+_HEALTH_MAX = STATS[:, S["health"]]
 _HEALABLE = ((STATS[:, S["attributes"]].astype(np.int64) & BIO) != 0) & (STATS[:, S["is_air"]] == 0)
 
 
@@ -128,6 +130,8 @@ class Frame:
     own_hp = cached_property(lambda self: self.own_health + self.own_shield)
     own_hp_max = cached_property(lambda self: _HP_MAX[self.own_type])
     own_hp_frac = cached_property(lambda self: self.own_hp / self.own_hp_max)
+    own_health_max = cached_property(lambda self: _HEALTH_MAX[self.own_type])
+    own_health_frac = cached_property(lambda self: self.own_health / self.own_health_max)  # hull only
     own_radius = cached_property(lambda self: STATS[self.own_type, S["radius"]])
     own_range = cached_property(lambda self: STATS[self.own_type, S["range"]])
     own_speed = cached_property(lambda self: STATS[self.own_type, S["speed"]])
@@ -143,6 +147,8 @@ class Frame:
     enemy_hp = cached_property(lambda self: self.enemy_health + self.enemy_shield)
     enemy_hp_max = cached_property(lambda self: _HP_MAX[self.enemy_type])
     enemy_hp_frac = cached_property(lambda self: self.enemy_hp / self.enemy_hp_max)
+    enemy_health_max = cached_property(lambda self: _HEALTH_MAX[self.enemy_type])
+    enemy_health_frac = cached_property(lambda self: self.enemy_health / self.enemy_health_max)  # hull only
     enemy_radius = cached_property(lambda self: STATS[self.enemy_type, S["radius"]])
     enemy_range = cached_property(lambda self: STATS[self.enemy_type, S["range"]])
     enemy_speed = cached_property(lambda self: STATS[self.enemy_type, S["speed"]])
@@ -188,6 +194,24 @@ class Frame:
         """Unit vector of advance (own spawn toward enemy spawn), (2,)."""
         return self.view.forward
 
+    # SMAC-HARD's frame. Its scripts always play blue and hard-code blue's map coordinates; red plays them
+    # reflected through the midpoint of the two spawns, which swaps the spawns (the map centre on every map with
+    # mirrored spawns). The reflection keeps distances, so thresholds carry over unchanged.
+    @cached_property
+    def reflection(self) -> np.ndarray | None:
+        """None for blue; for red the (2,) point S of the reflection (x, y) -> (S - x, S - y)."""
+        return None if self.view.side != RED else self.view.own_spawn + self.view.enemy_spawn
+
+    def blue_frame(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points (x, y) as SMAC-HARD's blue side sees them: unchanged for blue, reflected for red."""
+        s = self.reflection
+        return (x, y) if s is None else (s[0] - x, s[1] - y)
+
+    own_hx = cached_property(lambda self: self.blue_frame(self.own_x, self.own_y)[0])
+    own_hy = cached_property(lambda self: self.blue_frame(self.own_x, self.own_y)[1])
+    enemy_hx = cached_property(lambda self: self.blue_frame(self.enemy_x, self.enemy_y)[0])
+    enemy_hy = cached_property(lambda self: self.blue_frame(self.enemy_x, self.enemy_y)[1])
+
 
 # ---------------------------------------------------------------------------------------------------------------
 # Selection.
@@ -221,6 +245,28 @@ def across_rank(x: np.ndarray, y: np.ndarray, facing: np.ndarray) -> np.ndarray:
     assigning formation slots by this rank keeps units from crossing each other's paths."""
     across = x * -facing[1] + y * facing[0]
     return np.argsort(np.argsort(across, axis=-1, kind="stable"), axis=-1, kind="stable")
+
+
+def list_rank(mask: np.ndarray) -> np.ndarray:
+    """Position of each unit in the list of units where ``mask`` holds, in index order (SMAC-HARD's lists are
+    sorted by tag, which is our index order); -1 where the mask is false. (R, n) -> (R, n)."""
+    return np.where(mask, np.cumsum(mask, axis=-1) - 1, -1)
+
+
+def weakest_of_nearest(dist: np.ndarray, values: np.ndarray, mask: np.ndarray, k: int) -> np.ndarray:
+    """SMAC-HARD's ``min(nearest_n_units(unit, enemies, k), key=value)`` for each (R, n, m) row of ``dist``.
+
+    With at most ``k`` candidates (``mask``) all of them count, in index order: a tie goes to the lowest index,
+    not the nearest (``nearest_n_units`` returns a list that short unsorted). With more, the ``k`` nearest count
+    (a stable sort: equal distances keep index order) and a tie goes to the nearer. ``values`` (R, m) or (R, n, m);
+    returns (R, n) indices, -1 without candidates.
+    """
+    values = np.broadcast_to(values if values.ndim == 3 else values[:, None, :], dist.shape)
+    d = np.where(mask, dist, np.inf)
+    by_distance = np.argsort(np.argsort(d, axis=-1, kind="stable"), axis=-1, kind="stable")  # rank, (R, n, m)
+    few = (mask.sum(axis=-1) <= k)[..., None]
+    order = np.where(few, np.arange(dist.shape[-1]), by_distance)
+    return lowest(values, mask & (few | (by_distance < k)), tie=order)
 
 
 def within(dist: np.ndarray, reach: np.ndarray | float) -> np.ndarray:
@@ -290,6 +336,16 @@ def arc_points(cx: np.ndarray, cy: np.ndarray, facing: np.ndarray, n: int, radiu
     base = np.arctan2(facing[1], facing[0])
     return (np.asarray(cx)[..., None] + radius * np.cos(base + angles),
             np.asarray(cy)[..., None] + radius * np.sin(base + angles))
+
+
+def from_blue_frame(frame: Frame, x: np.ndarray | float, y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """SMAC-HARD's point (x, y), written for blue, on ``frame``'s side: exact for blue; for red reflected (see
+    :meth:`Frame.blue_frame`) and moved onto pathable ground, since the reflection of a map whose terrain is not
+    symmetric can land on a wall."""
+    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    if frame.reflection is None:
+        return x, y
+    return to_pathable(*frame.blue_frame(x, y), frame.spec)
 
 
 def clamp_to_map(x: np.ndarray, y: np.ndarray, spec: MapSpec, margin: float = 0.5

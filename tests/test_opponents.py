@@ -26,10 +26,12 @@ from smac_hard_gym.opponents.helpers import (
     Orders,
     argmin_masked,
     centroid,
+    from_blue_frame,
     line_points,
     lowest,
     retreat_points,
     to_pathable,
+    weakest_of_nearest,
 )
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -64,6 +66,36 @@ def test_argmin_masked_and_lowest_tie_break():
     hp = np.array([[10.0, 4.0, 4.0]])
     dist = np.array([[1.0, 9.0, 3.0]])
     assert lowest(hp, np.ones((1, 3), bool), tie=dist)[0] == 2  # both 4 HP: the nearer one
+
+
+def test_weakest_of_nearest_reads_smac_hards_nearest_n_units():
+    # One unit, 4 enemies at distances 4, 1, 3, 2 with health 10, 20, 10, 20.
+    dist = np.array([[[4.0, 1.0, 3.0, 2.0]]])
+    health = np.array([[10.0, 20.0, 10.0, 20.0]])
+    alive = np.ones((1, 1, 4), bool)
+    # The 2 nearest are enemies 1 and 3, both at 20: the nearer (1). The 3 nearest: enemy 2 alone has 10.
+    assert weakest_of_nearest(dist, health, alive, k=2)[0, 0] == 1
+    assert weakest_of_nearest(dist, health, alive, k=3)[0, 0] == 2
+    # With k or fewer candidates SMAC-HARD's list stays in index order: of enemies 1 and 3 (both 20), the first
+    # is 1, and of 0 and 2 (both 10) it is 0 although 2 is nearer.
+    assert weakest_of_nearest(dist, health, np.array([[[False, True, False, True]]]), k=2)[0, 0] == 1
+    assert weakest_of_nearest(dist, health, np.array([[[True, False, True, False]]]), k=2)[0, 0] == 0
+    assert weakest_of_nearest(dist, health, np.zeros((1, 1, 4), bool), k=2)[0, 0] == -1
+
+
+def test_blue_frame_reflects_red_through_the_spawns_midpoint():
+    engine = BattleEngine("3m", batch_size=1)
+    steps = np.zeros(1, dtype=np.int64)
+    for side, expected in ((BLUE, (25.0, 15.5)), (RED, (7.0, 16.5))):
+        frame = Frame(SideView.of(engine.state, engine.spec, side, steps), np.array([0]))
+        x, y = from_blue_frame(frame, 25.0, 15.5)  # SMAC-HARD's line centre, written for blue
+        assert (float(x), float(y)) == expected
+        assert frame.blue_frame(*frame.blue_frame(3.0, 4.0)) == (3.0, 4.0)  # its own inverse
+    # corridor's spawns are not mirror images: red's reflection of a point can land off the path; it is moved on.
+    engine = BattleEngine("corridor", batch_size=1)
+    frame = Frame(SideView.of(engine.state, engine.spec, RED, steps), np.array([0]))
+    x, y = from_blue_frame(frame, 15.0, 22.0)
+    assert engine.spec.pathable[int(x), int(y)]
 
 
 def test_centroid_falls_back_where_nothing_is_alive():
