@@ -18,6 +18,7 @@ from smac_hard_gym.engine.state import (
 )
 from smac_hard_gym.maps import list_maps
 from smac_hard_gym.opponents import POOLS, SideView, make_opponent, scripts_for_map
+from smac_hard_gym.opponents.base import SMAC_HARD_BASE_POINTS
 from smac_hard_gym.opponents.duel import run_duel
 from smac_hard_gym.units import STATS, S
 
@@ -88,6 +89,10 @@ def test_pool_script_beats_a_side_that_only_stops(map_name, script):
         np.testing.assert_allclose(st.health[0, :2] + st.shield[0, :2], 160.0)
         return
     result = run_duel(map_name, red="stop", blue=script, episodes=2, seed=0, guard=True)
+    if script == "base" and SMAC_HARD_BASE_POINTS[map_name] is None:
+        # SMAC-HARD's base gives no order on this map: both sides stand still out of reach until the limit.
+        assert result.draws == result.timeouts == 2, result.summary()
+        return
     assert result.blue_wins == 2, result.summary()
 
 
