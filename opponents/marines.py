@@ -1,8 +1,10 @@
-"""Marine maps: SMAC-HARD's line scripts (s_8m: 3m, 8m, 5m_vs_6m, 8m_vs_9m, 10m_vs_11m) and column scripts (s_27m:
-25m, 27m_vs_30m), written from their strategy descriptions.
+"""Marine maps: SMAC-HARD's line scripts (``s_8m``: 3m, 8m, 5m_vs_6m, 8m_vs_9m, 10m_vs_11m) and column scripts
+(``s_27m``: 25m, 27m_vs_30m), as SMAC-HARD's code runs them.
 
-Geometry is taken from the map (own spawn, direction of advance), not hard-coded, so the scripts also play the red
-side. SMAC-HARD's line at x=25 is "2 behind the own spawn" here.
+SMAC-HARD's map coordinates are kept exactly for blue (the line at x = 25, one west step per env step); red plays
+them reflected through the midpoint of the two spawns (:meth:`~smac_hard_gym.opponents.helpers.Frame.blue_frame`),
+which on these maps is (32 - x, 32 - y). SMAC-HARD's lists of own units are sorted by tag and its enemy lists are in
+raw observation order; both are our index order, so "first" on a tie means the lowest index.
 """
 
 from __future__ import annotations
@@ -14,39 +16,45 @@ from smac_hard_gym.opponents.helpers import (
     Frame,
     Memory,
     Orders,
-    across_rank,
     argmin_masked,
-    line_points,
-    lowest,
-    nearest,
+    from_blue_frame,
+    list_rank,
+    weakest_of_nearest,
 )
 
 __all__ = ["LineAdvance", "ColumnAdvance"]
 
-FORM_STEPS = 5  # steps spent forming up before the advance
-LINE_BEHIND_SPAWN = 2.0  # the formation line sits this far behind the own spawn
+FORM_STEPS = 5  # steps 0-4 form up
+LINE_X, LINE_Y = 25.0, 16.0  # SMAC-HARD's formation line, blue side
 
 
-def _formation(frame: Frame, spacing: float, per_rank: int | None) -> tuple[np.ndarray, np.ndarray]:
-    """Slot points of a line across the direction of advance, 2 behind the own spawn, assigned left to right."""
-    f = frame.forward
-    centre = frame.view.own_spawn - LINE_BEHIND_SPAWN * f
-    cx = np.full(frame.size, centre[0])
-    cy = np.full(frame.size, centre[1])
-    px, py = line_points(cx, cy, f, frame.n_own, spacing=spacing, per_rank=per_rank)
-    rank = across_rank(frame.own_x, frame.own_y, f)
-    return np.take_along_axis(px, rank, axis=1), np.take_along_axis(py, rank, axis=1)
+def _centre_distance(frame: Frame, cx: np.ndarray, cy: np.ndarray) -> np.ndarray:
+    """(R,) distance from (cx, cy) to the nearest alive enemy (inf where none)."""
+    d = np.hypot(frame.enemy_x - cx[:, None], frame.enemy_y - cy[:, None])
+    return np.where(frame.enemy_alive, d, np.inf).min(axis=1)
+
+
+def _live(frame: Frame) -> np.ndarray:
+    """(R,) rows where both sides have a unit alive (SMAC-HARD's scripts return no actions otherwise)."""
+    return frame.own_alive.any(axis=1) & frame.enemy_alive.any(axis=1)
 
 
 class LineAdvance(BatchScript):
-    """SMAC-HARD ``s_8m/script`` (focus ``"front"``) and ``script_1`` (focus ``"weakest"``).
+    """SMAC-HARD ``s_8m/script.py`` (focus ``"front"``, name ``line_front``) and ``s_8m/script_1.py`` (focus
+    ``"weakest"``, name ``line_weakest``), as they run.
 
-    1. Steps 0-4: form a line across the direction of advance, 2 behind the own spawn, spacing 1.
-    2. Advance 1 per step while the nearest enemy is more than 8 from the own centre; the first contact ends the
-       advance for good.
-    3. Engaged: every marine attacks one enemy: the frontmost (the one nearest the own centre along the axis of
-       advance) or the one with the lowest health + shield.
-    4. A marine that lost health since the last step and is below 30% steps 1 back.
+    1. Steps 0-4: alive marine k of n (index order, SMAC-HARD's tag order) moves to (25, 16 + k - n/2): a vertical
+       line at x = 25, spacing 1, centred on y = 15.5.
+    2. Then, until the first contact, every marine moves 1 west per step while the nearest enemy is more than 8
+       from the marines' centre; contact (8 or less) ends the advance for good.
+    3. Engaged: every marine attacks one enemy: ``"front"`` the one whose x is nearest the centre's x, ``"weakest"``
+       the one with the lowest health; the first in index order on a tie.
+    4. A marine whose health fraction changed since the last step and is below 30% steps 1 east instead.
+
+    Deliberate differences: red plays the same coordinates reflected through the midpoint of the spawns (x = 7, one
+    east step per env step on these maps). Earlier releases formed the line by lateral rank around y = 16 and broke
+    ``line_weakest``'s ties (all at full health) by distance to the centre; SMAC-HARD's first-enemy tie-break focuses
+    every marine on the same, possibly far, unit.
     """
 
     contact_distance = 8.0
@@ -58,61 +66,67 @@ class LineAdvance(BatchScript):
         self.focus = focus
         self.name = "line_front" if focus == "front" else "line_weakest"
         self.description = (
-            "form a line, advance to contact, all focus the " + ("frontmost" if focus == "front" else "weakest")
+            "line at x=25 for 5 steps, advance 1 west per step to contact, all focus the "
+            + ("frontmost" if focus == "front" else "lowest-health (first on a tie)")
             + " enemy; wounded step back (SMAC-HARD s_8m/" + ("script" if focus == "front" else "script_1") + ")")
-        self.memory = Memory(engaged=((), bool, False), last_hp=(("own",), np.float64, np.inf))
+        self.memory = Memory(engaged=((), bool, False), last_frac=(("own",), np.float64, 1.0))
 
     def plan(self, frame: Frame, orders: Orders) -> None:
-        rows, f = frame.rows, frame.forward
-        alive = frame.own_alive
-        cx, cy = frame.own_centroid
+        rows = frame.rows
+        live = _live(frame)
+        alive = frame.own_alive & live[:, None]
+        hx, hy = frame.own_hx, frame.own_hy
+        cx, cy = frame.blue_frame(*frame.own_centroid)
         forming = frame.step < FORM_STEPS
-        centre_dist = np.hypot(frame.enemy_x - cx[:, None], frame.enemy_y - cy[:, None])
-        contact = (np.where(frame.enemy_alive, centre_dist, np.inf).min(axis=1) <= self.contact_distance)
-        engaged = self.memory.engaged[rows] | (~forming & contact)
+        contact = _centre_distance(frame, *frame.own_centroid) <= self.contact_distance
+        engaged = self.memory.engaged[rows] | (live & ~forming & contact)
         self.memory.engaged[rows] = engaged
 
         if forming.any():
-            fx, fy = _formation(frame, spacing=1.0, per_rank=None)
-            orders.move(alive & forming[:, None], fx, fy)
+            k = list_rank(frame.own_alive)
+            n = frame.own_alive.sum(axis=1, keepdims=True)
+            orders.move(alive & forming[:, None], *from_blue_frame(frame, LINE_X, LINE_Y + k - n / 2.0))
         advance = alive & (~forming & ~engaged)[:, None]
-        orders.move(advance, frame.own_x + f[0], frame.own_y + f[1])
+        orders.move(advance, *from_blue_frame(frame, hx - 1.0, hy))
 
-        fight = alive & engaged[:, None]
+        frac = frame.own_health_frac
+        fight = alive & (~forming & engaged)[:, None]
         if fight.any():
             if self.focus == "front":
-                along = (frame.enemy_x - cx[:, None]) * f[0] + (frame.enemy_y - cy[:, None]) * f[1]
-                target = argmin_masked(np.abs(along), frame.enemy_alive)
+                target = argmin_masked(np.abs(frame.enemy_hx - cx[:, None]), frame.enemy_alive)
             else:
-                target = lowest(frame.enemy_hp, frame.enemy_alive, tie=centre_dist)
-            common = np.broadcast_to(target[:, None], alive.shape)
-            can = np.take_along_axis(frame.targetable, np.maximum(common, 0)[:, :, None], axis=2)[:, :, 0]
-            can &= common >= 0
-            if (fight & ~can).any():  # units that cannot hit the focus target take their nearest
-                orders.attack(fight & ~can, nearest(frame.dist, frame.targetable))
-            orders.attack(fight & can, common)
-            hurt = (frame.own_hp < self.memory.last_hp[rows]) & (frame.own_hp_frac < self.wounded_fraction)
-            orders.move(fight & hurt, frame.own_x - f[0], frame.own_y - f[1])
-        self.memory.last_hp[rows] = frame.own_hp
+                target = argmin_masked(frame.enemy_health, frame.enemy_alive)
+            orders.attack(fight, np.broadcast_to(target[:, None], fight.shape))
+            hurt = (frac != self.memory.last_frac[rows]) & (frac < self.wounded_fraction)
+            orders.move(fight & hurt, *from_blue_frame(frame, hx + 1.0, hy))
+        # SMAC-HARD remembers the fraction of the marines it saw this step (rows it returned early from keep theirs).
+        self.memory.last_frac[rows] = np.where(alive, frac, self.memory.last_frac[rows])
 
 
 class ColumnAdvance(BatchScript):
-    """SMAC-HARD ``s_27m`` scripts: ``script_a`` (mode ``"centroid"``), ``script_l`` (``"weakest"``) and
-    ``script_ap`` (``"point"``).
+    """SMAC-HARD ``s_27m`` scripts as they run: ``script_a.py`` (mode ``"centroid"``), ``script_l.py``
+    (``"weakest"``) and ``script_ap.py`` (``"point"``).
 
-    1. Steps 0-4: form ranks of up to 14 across the direction of advance, 2 behind the own spawn.
-    2. Advance 2 per step until some marine has an enemy within 9 (then engaged for good).
-    3. Engaged: ``centroid`` attack-moves everyone to the enemy centre; ``weakest`` has each marine attack the
-       weakest of its 5 nearest enemies; ``point`` attack-moves each marine to that enemy's position.
+    1. Steps 0-4: the alive marines, sorted by y (index order on a tie), take (25, 16 + (k - n/2) * 0.65): one
+       north-south column at x = 25, spacing 0.65.
+    2. Then, every step: while the nearest enemy is more than 9 from the marines' centre, every marine moves 2
+       west. Otherwise (this is re-checked every step, so the column can go back to moving):
+       ``centroid`` attack-moves everyone to the enemy centre; ``weakest`` has each marine attack the enemy with
+       the lowest health among its 5 nearest (among all of them, first in index order on a tie, while 5 or fewer
+       are alive); ``point`` attack-moves each marine to that enemy's position.
+
+    Deliberate differences: red plays the coordinates reflected through the midpoint of the spawns. Earlier
+    releases formed ranks of 14 across the advance, engaged for good once any marine had an enemy within 9, and
+    broke ties by distance.
     """
 
     contact_distance = 9.0
     advance_step = 2.0
-    per_rank = 14
+    spacing = 0.65
     _MODES = {
         "centroid": ("column_centroid", "attack-move to the enemy centre", "script_a"),
-        "weakest": ("column_weakest", "each attacks the weakest of its 5 nearest enemies", "script_l"),
-        "point": ("column_point", "each attack-moves onto the weakest of its 5 nearest enemies", "script_ap"),
+        "weakest": ("column_weakest", "each attacks the lowest-health of its 5 nearest enemies", "script_l"),
+        "point": ("column_point", "each attack-moves onto the lowest-health of its 5 nearest enemies", "script_ap"),
     }
 
     def __init__(self, mode: str = "centroid") -> None:
@@ -120,47 +134,36 @@ class ColumnAdvance(BatchScript):
             raise ValueError(f"mode must be one of {sorted(self._MODES)}, got {mode!r}")
         self.mode = mode
         self.name, what, origin = self._MODES[mode]
-        self.description = f"form ranks, advance 2 per step to contact, then {what} (SMAC-HARD s_27m/{origin})"
-        self.memory = Memory(engaged=((), bool, False))
+        self.description = (f"column at x=25 for 5 steps, move 2 west per step while the enemy is over 9 from the "
+                            f"centre, else {what} (SMAC-HARD s_27m/{origin})")
 
     def plan(self, frame: Frame, orders: Orders) -> None:
-        rows, f = frame.rows, frame.forward
-        alive = frame.own_alive
+        live = _live(frame)
+        alive = frame.own_alive & live[:, None]
+        hx, hy = frame.own_hx, frame.own_hy
         forming = frame.step < FORM_STEPS
-        contact = (np.where(frame.hittable, frame.dist, np.inf).min(axis=(1, 2)) <= self.contact_distance)
-        engaged = self.memory.engaged[rows] | (~forming & contact)
-        self.memory.engaged[rows] = engaged
 
         if forming.any():
-            fx, fy = _formation(frame, spacing=1.0, per_rank=self.per_rank)
-            orders.move(alive & forming[:, None], fx, fy)
-        advance = alive & (~forming & ~engaged)[:, None]
-        orders.move(advance, frame.own_x + self.advance_step * f[0], frame.own_y + self.advance_step * f[1])
+            by_y = np.argsort(np.where(frame.own_alive, hy, np.inf), axis=1, kind="stable")
+            k = np.argsort(by_y, axis=1, kind="stable")  # rank by y; the dead sort last and get no order
+            n = frame.own_alive.sum(axis=1, keepdims=True)
+            orders.move(alive & forming[:, None],
+                        *from_blue_frame(frame, LINE_X, LINE_Y + (k - n / 2.0) * self.spacing))
 
-        fight = alive & engaged[:, None]
+        far = _centre_distance(frame, *frame.own_centroid) > self.contact_distance
+        orders.move(alive & (~forming & far)[:, None], *from_blue_frame(frame, hx - self.advance_step, hy))
+
+        fight = alive & (~forming & ~far)[:, None]
         if not fight.any():
             return
         if self.mode == "centroid":
             ex, ey = frame.enemy_centroid
             orders.attack_move(fight, ex[:, None], ey[:, None])
             return
-        target = _weakest_of_nearest(frame, k=5)
+        target = weakest_of_nearest(frame.dist, frame.enemy_health, frame.hittable, k=5)
         if self.mode == "weakest":
             orders.attack(fight, target)
         else:
             safe = np.maximum(target, 0)
-            tx = np.take_along_axis(frame.enemy_x, safe, axis=1)
-            ty = np.take_along_axis(frame.enemy_y, safe, axis=1)
-            orders.attack_move(fight & (target >= 0), tx, ty)
-
-
-def _weakest_of_nearest(frame: Frame, k: int) -> np.ndarray:
-    """(R, n): for each unit, the lowest health + shield enemy among its ``k`` nearest targetable ones."""
-    d = np.where(frame.targetable, frame.dist, np.inf)
-    k = min(k, frame.n_enemy)
-    near = np.argsort(d, axis=2, kind="stable")[:, :, :k]  # (R, n, k)
-    valid = np.take_along_axis(d, near, axis=2) < np.inf
-    hp = np.take_along_axis(np.broadcast_to(frame.enemy_hp[:, None, :], d.shape), near, axis=2)
-    pick = lowest(hp, valid, tie=np.take_along_axis(d, near, axis=2))  # index into the k nearest
-    chosen = np.take_along_axis(near, np.maximum(pick, 0)[:, :, None], axis=2)[:, :, 0]
-    return np.where(pick >= 0, chosen, -1)
+            orders.attack_move(fight & (target >= 0), np.take_along_axis(frame.enemy_x, safe, axis=1),
+                               np.take_along_axis(frame.enemy_y, safe, axis=1))

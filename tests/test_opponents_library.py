@@ -176,7 +176,7 @@ def test_line_front_forms_smac_hards_line_then_focuses_the_frontmost_enemy():
     n = battle.n_red
     assert (battle.commands.kind[0, n:] == CMD_MOVE).all()
     np.testing.assert_allclose(battle.commands.x[0, n:], 25.0)  # SMAC-HARD: a vertical line at x=25
-    np.testing.assert_allclose(sorted(battle.commands.y[0, n:]), [15.0, 16.0, 17.0])  # spacing 1 around y=16
+    np.testing.assert_allclose(battle.commands.y[0, n:], [14.5, 15.5, 16.5])  # 16 + k - 3/2, by index (tag)
     # Put the red marines at different depths; once in contact all blue marines attack the frontmost one,
     # the one whose x is nearest the blue centre's x.
     battle.steps[:] = 5
@@ -246,3 +246,75 @@ def test_pincer_swings_through_smac_hards_corridor_waypoints():
     for waypoint in ((15.0, 22.0), (22.0, 15.0)):
         close = np.hypot(*(points - waypoint).T) < 0.2
         assert close.sum() == 12, (waypoint, points)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The pool scripts as SMAC-HARD runs them: each difference from earlier releases, pinned in a hand-set battle.
+# Expected orders are worked out by hand from SMAC-HARD's code (smac_hard/env/scripts at f034f85).
+
+
+def _orders(battle: Battle, side: int = BLUE) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One act; the (kind, target, x, y) commands of ``side``'s units in battle 0."""
+    battle.act()
+    own = slice(battle.n_red, None) if side == BLUE else slice(0, battle.n_red)
+    c = battle.commands
+    return c.kind[0, own], c.target[0, own], c.x[0, own], c.y[0, own]
+
+
+def test_line_weakest_ties_go_to_the_first_enemy_not_the_nearest():
+    battle = Battle("8m", red="stop", blue="line_weakest")
+    battle.reset_scripts()
+    battle.steps[:] = 5
+    battle.engine.place(0, 0, x=4.0, y=16.0)  # far behind the others, full health like them
+    for slot in range(1, 8):
+        battle.engine.place(0, slot, x=17.0, y=12.5 + slot)  # within 8 of the blue centre: contact
+    kind, target, _, _ = _orders(battle)
+    assert (kind == CMD_ATTACK).all() and (target == 0).all()
+    battle.engine.place(0, 5, health=44.0)  # a lower health wins over the index
+    _, target, _, _ = _orders(battle)
+    assert (target == 5).all()
+
+
+def test_line_front_on_the_red_side_plays_the_reflected_line():
+    battle = Battle("3m", red="line_front", blue="stop")
+    battle.reset_scripts()
+    kind, _, x, y = _orders(battle, RED)
+    assert (kind == CMD_MOVE).all()
+    np.testing.assert_allclose(x, 7.0)  # (32 - 25): the spawns' midpoint is (16, 16)
+    np.testing.assert_allclose(y, [17.5, 16.5, 15.5])  # 32 - (16 + k - 3/2)
+
+
+def test_line_wounded_marine_steps_back_only_while_its_health_changes():
+    battle = Battle("3m", red="stop", blue="line_front")
+    battle.reset_scripts()
+    n = battle.n_red
+    battle.steps[:] = 5
+    for slot in range(3):
+        battle.engine.place(0, slot, x=18.0, y=15.0 + slot)  # contact
+    battle.engine.place(0, n, health=13.0)  # 13/45 < 30%, and its fraction changed since the start (1.0)
+    kind, _, x, _ = _orders(battle)
+    assert kind[0] == CMD_MOVE and x[0] == pytest.approx(battle.state.x[0, n] + 1.0)  # 1 east
+    assert (kind[1:] == CMD_ATTACK).all()
+    kind, _, _, _ = _orders(battle)  # same fraction as last step: it attacks again
+    assert kind[0] == CMD_ATTACK
+
+
+def test_column_forms_one_column_by_y_and_rechecks_contact_every_step():
+    battle = Battle("25m", red="stop", blue="column_weakest")
+    battle.reset_scripts()
+    n = battle.n_red
+    kind, _, x, y = _orders(battle)
+    assert (kind == CMD_MOVE).all()
+    np.testing.assert_allclose(x, 25.0)
+    rank = np.argsort(np.argsort(battle.state.y[0, n:], kind="stable"), kind="stable")
+    np.testing.assert_allclose(y, 16.0 + (rank - 25 / 2) * 0.65)
+    battle.steps[:] = 5
+    for slot in range(n):
+        battle.engine.place(0, slot, x=16.0, y=10.0 + 0.5 * slot)  # 7 from the blue centre: fight
+    kind, _, _, _ = _orders(battle)
+    assert (kind == CMD_ATTACK).all()
+    for slot in range(n):
+        battle.engine.place(0, slot, x=8.0)  # back out of 9: the column moves again, 2 west
+    kind, _, x, _ = _orders(battle)
+    assert (kind == CMD_MOVE).all()
+    np.testing.assert_allclose(x, battle.state.x[0, n:] - 2.0)
