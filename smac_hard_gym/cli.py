@@ -14,6 +14,7 @@ COMMANDS: dict[str, str] = {
     "maps": "smac_hard_gym.commands.maps",
     "scripts": "smac_hard_gym.commands.scripts",
     "duel": "smac_hard_gym.commands.duel",
+    "solutions": "smac_hard_gym.commands.solutions",
     "bench": "smac_hard_gym.commands.bench",
     "demo": "smac_hard_gym.commands.demo",
     "replay": "smac_hard_gym.commands.replay",

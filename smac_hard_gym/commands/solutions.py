@@ -1,0 +1,47 @@
+"""``smac-hard-gym solutions [--map M]``: play the known-solution scenarios and print their win rates and bounds."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = ("play scripted strategies whose outcome is known from the game (alternating aggro, kiting, holding a "
+        "choke, hide and pick off) against the opponents they beat or lose to, and check the win-rate bounds")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--map", default=None, help="only the scenarios on this map")
+    parser.add_argument("--episodes", type=int, default=32, help="seeded episodes per pairing (default 32)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the episodes")
+    parser.add_argument("--json", default=None, metavar="PATH", help="also write the table as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from smac_hard_gym.opponents.known_solutions import check_claim, claims_for_map
+
+    if args.episodes < 1:
+        print(f"error: --episodes must be a positive int, got {args.episodes}")
+        return 2
+    try:
+        claims = claims_for_map(args.map)
+    except ValueError as err:
+        print(f"error: {err}")
+        return 2
+    print(f"{'map':<14}{'red (learner side)':<20}{'vs':<9}{'win rate':>9}  {'bound':<24}result")
+    rows, failed = [], 0
+    for claim in claims:
+        verdict = check_claim(claim, episodes=args.episodes, seed=args.seed)
+        bound = claim.bound if claim.better_than is None else f"> {verdict.other_rate:.2f} ({claim.better_than})"
+        result = "holds" if verdict.holds else ("FAILS" if claim.open_issue is None else "fails (open: "
+                                                f"{claim.open_issue})")
+        failed += not verdict.holds and claim.open_issue is None
+        print(f"{claim.map_name:<14}{claim.red:<20}{claim.blue:<9}{verdict.rate:>9.2f}  {bound:<24}{result}")
+        rows.append({"map": claim.map_name, "red": claim.red, "blue": claim.blue, "why": claim.why,
+                     "win_rate": verdict.rate, "bound": claim.bound, "comparison_win_rate": verdict.other_rate,
+                     "holds": verdict.holds, "open_issue": claim.open_issue, "episodes": args.episodes,
+                     "seed": args.seed})
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(rows, fh, indent=1)
+    return 1 if failed else 0
