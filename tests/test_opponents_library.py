@@ -11,8 +11,10 @@ from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import (
     BLUE,
     CMD_ATTACK,
+    CMD_ATTACK_MOVE,
     CMD_HEAL,
     CMD_MOVE,
+    CMD_NOOP,
     RED,
     Commands,
 )
@@ -92,6 +94,13 @@ def test_pool_script_beats_a_side_that_only_stops(map_name, script):
     if script == "base" and SMAC_HARD_BASE_POINTS[map_name] is None:
         # SMAC-HARD's base gives no order on this map: both sides stand still out of reach until the limit.
         assert result.draws == result.timeouts == 2, result.summary()
+        return
+    if (map_name, script) == ("3s_vs_3z", "surround"):
+        # SMAC-HARD's 3-zealot surround sends zealot 1 (spawned straight north of zealot 0) to a slot 4 south of
+        # zealot 0, whose own position anchors the line. SC2 would steer it round; the engine's collision pushes
+        # zealot 0 ahead of it along the same column, so the anchor runs away and the line never forms. Against a
+        # side that never comes the zealots never reach contact.
+        assert result.draws == 2, result.summary()
         return
     assert result.blue_wins == 2, result.summary()
 
@@ -192,8 +201,8 @@ def test_colossus_splash_fires_at_the_densest_cluster():
     n = battle.n_red
     colossus = n  # blue's first unit (creation order: colossus, stalkers, zealots)
     cx, cy = battle.state.x[0, colossus], battle.state.y[0, colossus]
-    for slot in range(n):  # red units out of the way, at the far west
-        battle.engine.place(0, slot, x=1.0 + 0.8 * slot, y=9.0)
+    for slot in range(n):  # red units out of the way, at the far west, more than 3 apart
+        battle.engine.place(0, slot, x=1.0 + 3.1 * slot, y=9.0)
     battle.engine.place(0, 1, x=cx - 4.0, y=cy - 3.0)  # a lone stalker, 5 away: the nearest to the colossus
     # Three zealots in a row 1.6 apart, about 7 away: only the middle one has both others within 3 (the ends are
     # 3.2 apart); the other red units stand far off in the west.
@@ -318,3 +327,114 @@ def test_column_forms_one_column_by_y_and_rechecks_contact_every_step():
     kind, _, x, _ = _orders(battle)
     assert (kind == CMD_MOVE).all()
     np.testing.assert_allclose(x, battle.state.x[0, n:] - 2.0)
+
+
+def test_stalker_retreat_thresholds_read_hull_health():
+    battle = Battle("2s3z", red="stop", blue="stalker_retreat")
+    n = battle.n_red
+    stalker = n  # blue's first unit
+    sx, sy = battle.state.x[0, stalker], battle.state.y[0, stalker]
+    battle.engine.place(0, 0, x=sx - 5.0, y=sy)  # a red unit within 6
+    battle.engine.place(0, stalker, health=32.0, shield=80.0)  # hull 40%, shields full (70% in all)
+    battle.reset_scripts()
+    kind, _, x, y = _orders(battle)
+    assert kind[0] == CMD_MOVE and (x[0], y[0]) == (23.0, 16.0)
+    assert kind[1] == CMD_ATTACK  # the healthy stalker attacks its nearest
+    for slot in (1, 2, 3):
+        battle.engine.place(0, slot, health=battle.state.health[0, slot] * 0.15)  # 3 below 20% hull, shields full
+    kind, _, _, _ = _orders(battle)
+    assert (kind == CMD_ATTACK_MOVE).all()  # everyone all-in on the enemy centre
+
+
+def test_center_focus_retreat_reads_hull_health():
+    battle = Battle("2s3z", red="stop", blue="center_focus")
+    zealot = battle.n_red + 2  # blue: stalkers 0-1, zealots 2-4
+    battle.engine.place(0, zealot, health=45.0, shield=50.0)  # hull 45%, shields full (63% in all)
+    battle.reset_scripts()
+    kind, _, x, y = _orders(battle)
+    assert kind[2] == CMD_MOVE and (x[2], y[2]) == (23.0, 16.0)
+    assert kind[3] == CMD_ATTACK
+
+
+def test_kite_push_after_a_loss_falls_back_home_whenever_in_range():
+    battle = Battle("3s5z", red="stop", blue="kite_push")
+    n = battle.n_red
+    battle.engine.place(0, n, alive=False, health=0.0, shield=0.0)  # blue loses a stalker: 2 left
+    stalker = n + 1
+    sx, sy = battle.state.x[0, stalker], battle.state.y[0, stalker]
+    battle.engine.place(0, 0, x=sx - 5.0, y=sy)  # in range of stalker 1
+    battle.engine.place(0, stalker, cooldown=0.0)  # weapon ready: the cooldown plays no part
+    battle.reset_scripts()
+    battle.steps[:] = 10
+    kind, _, x, y = _orders(battle)
+    assert kind[1] == CMD_MOVE and (x[1], y[1]) == (23.0, 16.0)
+    battle.steps[:] = 150  # late, enemy not weak, a step divisible by 50: in-range stalkers pull back
+    kind, _, _, _ = _orders(battle)
+    assert kind[1] == CMD_MOVE
+    battle.steps[:] = 151  # other steps: no order, the last one stands
+    kind, _, _, _ = _orders(battle)
+    assert kind[1] == CMD_NOOP and kind[2] == CMD_NOOP
+
+
+def test_colossus_splash_ties_go_to_the_first_enemy():
+    battle = Battle("1c3s5z", red="stop", blue="colossus_splash")
+    n = battle.n_red
+    cx, cy = battle.state.x[0, n], battle.state.y[0, n]
+    for slot in range(n):  # every red unit alone, more than 3 from the others
+        battle.engine.place(0, slot, x=1.0 + 3.1 * slot, y=9.0)
+    battle.engine.place(0, 8, x=cx - 5.0, y=cy)  # the nearest: it alone, like all the others
+    battle.reset_scripts()
+    kind, target, _, _ = _orders(battle)
+    assert kind[0] == CMD_ATTACK and target[0] == 0  # every enemy has 1 within 3: the first
+
+
+def _zealots_at(battle: Battle, points: list[tuple[float, float]]) -> None:
+    for k, (x, y) in enumerate(points):
+        battle.engine.place(0, battle.n_red + k, x=x, y=y)
+
+
+def test_surround_stage_0_forms_at_zealot_0_while_the_enemy_is_over_13_away():
+    battle = Battle("3s_vs_5z", red="stop", blue="surround")
+    # Roles: largest x (0), largest y (1), smallest y (2), smallest x (3), then the first not picked (4).
+    _zealots_at(battle, [(24.0, 16.0), (22.0, 19.0), (22.0, 13.0), (20.0, 16.0), (22.0, 16.0)])
+    for slot in range(3):
+        battle.engine.place(0, slot, x=9.0, y=15.0 + slot)  # 15 from zealot 0
+    battle.reset_scripts()
+    kind, _, x, y = _orders(battle)
+    assert (kind == CMD_MOVE).all()
+    np.testing.assert_allclose(x, 24.0)  # axis-aligned, on zealot 0's own x
+    np.testing.assert_allclose(y, [16.0, 20.0, 12.0, 18.0, 14.0])  # +0, +4, -4, +2, -2
+    for slot in range(3):
+        battle.engine.place(0, slot, x=12.0)  # the stalkers' centre (12, 16) is now 12 from zealot 0
+    _, _, x, _ = _orders(battle)
+    np.testing.assert_allclose(x, 25.0)  # the line moves to 13 from the target, toward zealot 0
+
+
+def test_surround_stages_advance_on_arrival_to_slots_at_90_and_30_degrees():
+    battle = Battle("3s_vs_5z", red="stop", blue="surround")
+    _zealots_at(battle, [(24.0, 16.0), (24.0, 20.0), (24.0, 12.0), (22.5, 18.0), (22.5, 14.0)])
+    for slot in range(3):
+        battle.engine.place(0, slot, x=9.0, y=15.0 + slot)
+    battle.reset_scripts()
+    # Roles: largest x is zealot 0 (first of 0-2), largest y 1, smallest y 2, smallest x 3, then 4.
+    _orders(battle)
+    _zealots_at(battle, [(24.0, 16.0), (24.0, 20.0), (24.0, 12.0), (24.0, 18.0), (24.0, 14.0)])  # on stage 0
+    kind, _, x, y = _orders(battle)
+    # Stage 0 is held, so stage 1's slots, around the same anchor (zealot 0, 24, 16): -8 +-8, and -8 + 4 sqrt 3.
+    r3 = 4.0 * np.sqrt(3.0)
+    np.testing.assert_allclose(x, [24.0, 16.0, 16.0, 16.0 + r3, 16.0 + r3])
+    np.testing.assert_allclose(y, [16.0, 24.0, 8.0, 20.0, 12.0])
+    battle.engine.place(0, 2, x=24.0 - 6.4, y=20.0)  # a stalker closer than 6.5 to zealot 1: attack, for good
+    kind, target, _, _ = _orders(battle)
+    assert (kind == CMD_ATTACK).all() and target[1] == 2
+
+
+def test_surround_3z_roles_can_repeat_one_zealot_and_leave_another_out():
+    battle = Battle("3s_vs_3z", red="stop", blue="surround")
+    # Zealot 0 has both the largest x and the smallest y: the picks are 0, 0, then 1; zealot 2 is left out.
+    _zealots_at(battle, [(24.0, 14.0), (22.0, 16.0), (23.0, 17.0)])
+    battle.reset_scripts()
+    kind, _, x, y = _orders(battle)
+    # List [0, 0, 1]: slots (24, 14), (24, 10), (24, 18); zealot 0's second order (24, 10) is the one that counts.
+    assert kind.tolist() == [CMD_MOVE, CMD_MOVE, CMD_NOOP]
+    np.testing.assert_allclose([x[0], y[0], x[1], y[1]], [24.0, 10.0, 24.0, 18.0])
