@@ -1,153 +1,202 @@
-"""MMM and MMM2: SMAC-HARD's marine-marauder-medivac scripts (s_MMM ``script`` and ``script_2``), written from their
-strategy descriptions. The medivac follows the army and heals the most injured unit in both."""
+"""MMM and MMM2: SMAC-HARD's marine-marauder-medivac scripts (``s_MMM/script.py`` and ``script_2.py``), as SMAC-HARD's
+code runs them.
+
+SMAC-HARD's coordinates (x - 2 ahead, x + 1 behind, one west step per env step) are kept exactly for blue; red
+plays them reflected through the midpoint of the two spawns
+(:meth:`~smac_hard_gym.opponents.helpers.Frame.blue_frame`). Its lists are sorted by tag (own units) or in raw
+observation order (enemies), both our index order, so "first" on a tie means the lowest index.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from smac_hard_gym.opponents.generic import attack_nearest
 from smac_hard_gym.opponents.helpers import (
     BatchScript,
     Frame,
     Memory,
     Orders,
-    across_rank,
+    argmin_masked,
     centroid,
-    line_points,
+    from_blue_frame,
+    list_rank,
     lowest,
-    nearest,
     of_kind,
-    support_healers,
+    weakest_of_nearest,
 )
 
 __all__ = ["MMMFormation", "MarauderFront"]
 
-CONTACT = 8.0  # a marauder "sees" the enemy within this distance
+CONTACT = 8.0  # a marauder "sees" an enemy within this distance (SMAC-HARD's closer_than, inclusive)
+FORM_STEPS = 6  # steps 0-5 form up ("iteration <= 5")
 
 
-def _marauder_contact(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
-    """Per row: (every alive marauder has an enemy within 8, some alive marauder has one)."""
-    marauder = of_kind(frame.own_type, "marauder") & frame.own_alive
-    seen = (np.where(frame.enemy_alive[:, None, :], frame.dist, np.inf).min(axis=2) <= CONTACT)
-    return np.all(~marauder | seen, axis=1), np.any(marauder & seen, axis=1)
+class _MMMScript(BatchScript):
+    """What both s_MMM scripts share: the army's kinds, the advance, the marauders' front line and the medivac."""
 
-
-class MMMFormation(BatchScript):
-    """SMAC-HARD ``s_MMM/script``.
-
-    1. Steps 0-5: form up around the army's starting centre: marauders 2 ahead, marines on it, the medivac 1 back.
-    2. Advance 1 per step while some marauder has no enemy within 8 (engaged for good once all have one).
-    3. One target for the army: among enemy marines (else marauders, else anything), the weakest of the 3 nearest
-       the army centre. Marines attack it; marauders hold a front line 2 ahead of the marine centre, attacking once
-       they are on it and moving up to it otherwise; the medivac heals the most injured unit, else waits 1 behind
-       the centre. (The original's marine retreat never ran and is left out.)
-    """
-
-    name = "mmm_formation"
-    description = ("form up, advance to contact, marines focus the weakest of the 3 nearest (marines first), "
-                   "marauders hold a front line, medivac heals (SMAC-HARD s_MMM/script)")
-    heal_support = False
-    form_steps = 6
-
-    def __init__(self) -> None:
-        self.memory = Memory(engaged=((), bool, False), anchor_x=((), np.float64, np.nan),
-                             anchor_y=((), np.float64, np.nan))
-
-    def plan(self, frame: Frame, orders: Orders) -> None:
-        rows, alive, f = frame.rows, frame.own_alive, frame.forward
-        marine = of_kind(frame.own_type, "marine") & alive
-        marauder = of_kind(frame.own_type, "marauder") & alive
-        fighters = alive & ~frame.own_healer
-        cx, cy = centroid(frame.own_x, frame.own_y, fighters, frame.own_centroid)
-
-        fresh = np.isnan(self.memory.anchor_x[rows])
-        self.memory.anchor_x[rows] = np.where(fresh, cx, self.memory.anchor_x[rows])
-        self.memory.anchor_y[rows] = np.where(fresh, cy, self.memory.anchor_y[rows])
-        ax, ay = self.memory.anchor_x[rows], self.memory.anchor_y[rows]
-
-        forming = frame.step < self.form_steps
-        all_seen, _ = _marauder_contact(frame)
-        engaged = self.memory.engaged[rows] | (~forming & all_seen)
-        self.memory.engaged[rows] = engaged
-
-        # Formation: marauders in a line 2 ahead, marines in two ranks on the anchor.
-        rank = across_rank(frame.own_x, frame.own_y, f)
-        mx, my = line_points(ax + 2 * f[0], ay + 2 * f[1], f, frame.n_own, spacing=1.2)
-        lx, ly = line_points(ax, ay, f, frame.n_own, spacing=0.9, per_rank=max(1, (frame.n_own + 1) // 2))
-        px = np.where(of_kind(frame.own_type, "marauder"), np.take_along_axis(mx, rank, axis=1),
-                      np.take_along_axis(lx, rank, axis=1))
-        py = np.where(of_kind(frame.own_type, "marauder"), np.take_along_axis(my, rank, axis=1),
-                      np.take_along_axis(ly, rank, axis=1))
-        orders.move(fighters & forming[:, None], px, py)
-
-        advance = fighters & (~forming & ~engaged)[:, None]
-        orders.move(advance, frame.own_x + f[0], frame.own_y + f[1])
-
-        fight = engaged[:, None]
-        if fight.any():
-            target = self._army_target(frame, cx, cy)
-            common = np.broadcast_to(target[:, None], alive.shape)
-            can = np.take_along_axis(frame.targetable, np.maximum(common, 0)[:, :, None], axis=2)[:, :, 0]
-            can &= common >= 0
-            attack_nearest(frame, orders, (marine | marauder) & fight & ~can)
-            orders.attack(marine & fight & can, common)
-            # Marauders: the front line is 2 ahead of the marine centre along the axis of advance.
-            mcx, mcy = centroid(frame.own_x, frame.own_y, marine, (cx, cy))
-            line = (mcx + 2 * f[0]) * f[0] + (mcy + 2 * f[1]) * f[1]
-            along = frame.own_x * f[0] + frame.own_y * f[1]
-            behind = along < line[:, None] - 0.5
-            orders.attack(marauder & fight & can & ~behind, common)
-            gap = (line[:, None] - along)
-            orders.move(marauder & fight & behind, frame.own_x + gap * f[0], frame.own_y + gap * f[1])
-        support_healers(orders, frame, (cx - f[0], cy - f[1]))
-
-    @staticmethod
-    def _army_target(frame: Frame, cx: np.ndarray, cy: np.ndarray) -> np.ndarray:
-        """(R,) the weakest of the 3 enemies nearest the army centre, marines first, then marauders, then any."""
-        d = np.hypot(frame.enemy_x - cx[:, None], frame.enemy_y - cy[:, None])
-        pool = frame.enemy_alive
-        for kind in ("marauder", "marine"):  # the last one that has alive units wins
-            of = frame.enemy_alive & of_kind(frame.enemy_type, kind)
-            pool = np.where(of.any(axis=1)[:, None], of, pool)
-        ranked = np.argsort(np.where(pool, d, np.inf), axis=1, kind="stable")
-        third = np.take_along_axis(np.where(pool, d, np.inf), ranked[:, 2:3], axis=1) if pool.shape[1] > 2 else None
-        near3 = pool if third is None else pool & (d <= third)
-        return lowest(frame.enemy_hp, near3, tie=d)
-
-
-class MarauderFront(BatchScript):
-    """SMAC-HARD ``s_MMM/script_2``: marauders walk side by side (1 apart) at the army centre and the army advances
-    1 per step until some marauder has an enemy within 8; then each marine attacks its nearest enemy and the
-    marauders attack the nearest enemy marine or marauder. The medivac follows and heals."""
-
-    name = "marauder_front"
-    description = ("advance with marauders side by side in front until contact, then marines attack nearest and "
-                   "marauders the nearest marine/marauder (SMAC-HARD s_MMM/script_2)")
+    heal_support = False  # the medivac's orders are part of the script
 
     def __init__(self) -> None:
         self.memory = Memory(engaged=((), bool, False))
 
+    def _kinds(self, frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        alive = frame.own_alive
+        return (of_kind(frame.own_type, "marine") & alive, of_kind(frame.own_type, "marauder") & alive,
+                of_kind(frame.own_type, "medivac") & alive)
+
+    @staticmethod
+    def _sees(frame: Frame, marauder: np.ndarray) -> np.ndarray:
+        """(R, n) marauders with an enemy (any, medivacs included) within 8."""
+        near = np.where(frame.enemy_alive[:, None, :], frame.dist, np.inf).min(axis=2)
+        return marauder & (near <= CONTACT)
+
+    def _advance(self, frame: Frame, orders: Orders, advancing: np.ndarray) -> None:
+        """Every unit, medivacs included, moves 1 west (blue's frame)."""
+        units = frame.own_alive & advancing[:, None]
+        orders.move(units, *from_blue_frame(frame, frame.own_hx - 1.0, frame.own_hy))
+
+    def _front(self, frame: Frame, orders: Orders, marine: np.ndarray, marauder: np.ndarray, fight: np.ndarray,
+               target: np.ndarray) -> None:
+        """Marauders west of the front line (2 west of the marines' centre, else of the army's) attack ``target``
+        (R, n); the others move onto the line."""
+        alive = frame.own_alive
+        mx, _ = centroid(frame.own_hx, frame.own_hy, marine)
+        ax, _ = centroid(frame.own_hx, frame.own_hy, alive)
+        front = np.where(marine.any(axis=1), mx, ax) - 2.0
+        ahead = frame.own_hx < front[:, None]
+        orders.attack(marauder & fight[:, None] & ahead, target)
+        orders.move(marauder & fight[:, None] & ~ahead,
+                    *from_blue_frame(frame, np.broadcast_to(front[:, None], alive.shape), frame.own_hy))
+
+    def _medivac(self, frame: Frame, orders: Orders, marine: np.ndarray, marauder: np.ndarray,
+                 medivac: np.ndarray, fight: np.ndarray) -> None:
+        """Medivacs heal the marine or marauder with the lowest health fraction (marines listed first), else move
+        1 east of the army's centre."""
+        units = medivac & fight[:, None]
+        patients = marine | marauder
+        if not units.any() or not patients.any():
+            return
+        listed = np.where(of_kind(frame.own_type, "marine"), 0, frame.n_own) + np.arange(frame.n_own)
+        patient = lowest(frame.own_health_frac, patients, tie=np.broadcast_to(listed, patients.shape))
+        hurt = np.take_along_axis(frame.own_health_frac, np.maximum(patient, 0)[:, None], axis=1)[:, 0] < 1.0
+        hurt &= patient >= 0
+        orders.heal(units & hurt[:, None], np.broadcast_to(patient[:, None], units.shape))
+        cx, cy = centroid(frame.own_hx, frame.own_hy, frame.own_alive)
+        orders.move(units & ~hurt[:, None], *from_blue_frame(frame, cx[:, None] + 1.0, cy[:, None]))
+
+
+class MMMFormation(_MMMScript):
+    """SMAC-HARD ``s_MMM/script.py`` as it runs.
+
+    1. Steps 0-5: with (cx, cy) the centre of the marines and marauders (recomputed every step), marauders move to
+       (cx - 2, own y), marines to (cx, own y), medivacs to (cx + 1, own y).
+    2. Then, until the first contact, every unit moves 1 west per step while some marauder has no enemy within 8.
+    3. Engaged (for good): one target, the enemy with the lowest health + shield among the 3 nearest the centre of
+       all own units, taken from the enemy marines (else marauders, else any enemy); with 3 or fewer candidates all
+       count and a tie goes to the first in index order. Marines attack it. Marauders west of the front line (2
+       west of the marines' centre) attack it, the others move onto the line. Medivacs heal the marine or marauder
+       with the lowest health fraction, else move 1 east of the army's centre.
+
+    The marines' retreat (below 30% and losing health) never runs in SMAC-HARD (the health it compares is never
+    updated): left out. Deliberate differences: red plays the reflected frame. SMAC-HARD gives the medivac an
+    attack order on its patient; a medivac has no weapon, and SC2 makes it follow and heal that unit, which our
+    heal order does. Earlier releases formed lines around a fixed anchor, kept the marauders a line ahead, and had
+    the medivac heal from the first step.
+    """
+
+    name = "mmm_formation"
+    description = ("form up for 6 steps, advance 1 west per step to contact, marines focus the weakest of the 3 "
+                   "enemies nearest the army (marines first), marauders hold a front line, medivac heals "
+                   "(SMAC-HARD s_MMM/script)")
+
     def plan(self, frame: Frame, orders: Orders) -> None:
-        rows, alive, f = frame.rows, frame.own_alive, frame.forward
-        marine = of_kind(frame.own_type, "marine") & alive
-        marauder = of_kind(frame.own_type, "marauder") & alive
-        _, some_seen = _marauder_contact(frame)
-        engaged = self.memory.engaged[rows] | some_seen | ~marauder.any(axis=1)
-        self.memory.engaged[rows] = engaged
+        rows, alive = frame.rows, frame.own_alive
+        marine, marauder, medivac = self._kinds(frame)
+        live = (marine | marauder).any(axis=1) & frame.enemy_alive.any(axis=1)
+        forming = live & (frame.step < FORM_STEPS)
+        if forming.any():
+            cx, _ = centroid(frame.own_hx, frame.own_hy, marine | marauder)
+            offset = np.where(of_kind(frame.own_type, "marauder"), -2.0,
+                              np.where(of_kind(frame.own_type, "medivac"), 1.0, 0.0))
+            orders.move(alive & forming[:, None], *from_blue_frame(frame, cx[:, None] + offset, frame.own_hy))
 
-        cx, cy = centroid(frame.own_x, frame.own_y, alive & ~frame.own_healer, frame.own_centroid)
-        walking = ~engaged[:, None]
-        n_mar = int(of_kind(frame.own_type[0], "marauder").sum())
-        if n_mar:
-            lx, ly = line_points(cx + f[0], cy + f[1], f, n_mar, spacing=1.0)
-            rank = np.cumsum(of_kind(frame.own_type, "marauder"), axis=1) - 1  # marauder k takes slot k
-            slot = np.clip(rank, 0, n_mar - 1)
-            orders.move(marauder & walking, np.take_along_axis(lx, slot, axis=1), np.take_along_axis(ly, slot, axis=1))
-        orders.move(marine & walking, frame.own_x + f[0], frame.own_y + f[1])
+        blind = (marauder & ~self._sees(frame, marauder)).any(axis=1)  # some marauder sees no enemy
+        advancing = live & ~forming & blind & ~self.memory.engaged[rows]
+        self._advance(frame, orders, advancing)
+        fight = live & ~forming & ~advancing
+        self.memory.engaged[rows] |= fight
+        if not fight.any():
+            return
 
-        fight = engaged[:, None]
-        attack_nearest(frame, orders, marine & fight)
-        ground = frame.targetable & of_kind(frame.enemy_type, "marine", "marauder")[:, None, :]
-        pick = nearest(frame.dist, ground)
-        fallback = nearest(frame.dist, frame.targetable)
-        orders.attack(marauder & fight, np.where(pick >= 0, pick, fallback))
+        e_alive = frame.enemy_alive
+        pool = e_alive
+        for kind in ("marauder", "marine"):  # the last kind with units alive wins: marines, else marauders
+            of = e_alive & of_kind(frame.enemy_type, kind)
+            pool = np.where(of.any(axis=1)[:, None], of, pool)
+        cx, cy = frame.own_centroid
+        to_centre = np.hypot(frame.enemy_x - cx[:, None], frame.enemy_y - cy[:, None])
+        target = weakest_of_nearest(to_centre[:, None, :], frame.enemy_hp, pool[:, None, :], k=3)[:, 0]
+        common = np.broadcast_to(target[:, None], alive.shape)
+        orders.attack(marine & fight[:, None], common)
+        self._front(frame, orders, marine, marauder, fight, common)
+        self._medivac(frame, orders, marine, marauder, medivac, fight)
+
+
+class MarauderFront(_MMMScript):
+    """SMAC-HARD ``s_MMM/script_2.py`` as it runs.
+
+    1. Steps 0-5: with (cx, cy) the centre of the marines and marauders (recomputed every step), marauder 0 moves
+       to (cx - 2, cy - 1) and marauder 1 to (cx - 2, cy + 1) (a third marauder, on MMM2, gets no order); marine k of
+       n moves to (cx, own y - n/2 + k); medivacs to (cx + 1, own y).
+    2. Then, until the first contact, every unit moves 1 west per step while no marauder has an enemy within 8
+       (with no marauder alive that holds trivially).
+    3. Engaged (for good): each marine attacks its nearest enemy. Marauders west of the front line (2 west of the
+       marines' centre) attack their nearest enemy marine or marauder (marines listed first on a tie), the others
+       move onto the line. Medivacs heal the marine or marauder with the lowest health fraction, else move 1 east
+       of the army's centre.
+
+    The marines' retreat never runs in SMAC-HARD: left out. Deliberate differences: red plays the reflected frame;
+    the medivac's attack order on its patient is our heal order (see :class:`MMMFormation`). Earlier releases
+    walked the marauders side by side in front, engaged on the first marauder contact, had the marauders attack
+    wherever they stood and the medivac heal from the first step.
+    """
+
+    name = "marauder_front"
+    description = ("form up for 6 steps, advance 1 west per step until a marauder sees an enemy, then marines "
+                   "attack nearest and marauders past the front line the nearest marine/marauder (SMAC-HARD "
+                   "s_MMM/script_2)")
+
+    def plan(self, frame: Frame, orders: Orders) -> None:
+        rows = frame.rows
+        marine, marauder, medivac = self._kinds(frame)
+        live = (marine | marauder).any(axis=1) & frame.enemy_alive.any(axis=1)
+        forming = live & (frame.step < FORM_STEPS)
+        if forming.any():
+            cx, cy = centroid(frame.own_hx, frame.own_hy, marine | marauder)
+            hy = frame.own_hy
+            k = list_rank(marine)
+            n = marine.sum(axis=1, keepdims=True)
+            orders.move(marine & forming[:, None], *from_blue_frame(frame, cx[:, None], hy - n / 2.0 + k))
+            which = list_rank(marauder)
+            for j, side in enumerate((-1.0, 1.0)):
+                orders.move(marauder & (which == j) & forming[:, None],
+                            *from_blue_frame(frame, cx[:, None] - 2.0, cy[:, None] + side))
+            orders.move(medivac & forming[:, None], *from_blue_frame(frame, cx[:, None] + 1.0, hy))
+
+        all_blind = ~self._sees(frame, marauder).any(axis=1)
+        advancing = live & ~forming & all_blind & ~self.memory.engaged[rows]
+        self._advance(frame, orders, advancing)
+        fight = live & ~forming & ~advancing
+        self.memory.engaged[rows] |= fight
+        if not fight.any():
+            return
+
+        e_alive = frame.enemy_alive
+        m = frame.n_enemy
+        orders.attack(marine & fight[:, None], argmin_masked(frame.dist, frame.targetable))
+        ground = e_alive & of_kind(frame.enemy_type, "marine", "marauder")
+        listed = np.where(of_kind(frame.enemy_type, "marine"), 0, m) + np.arange(m)  # marines, then marauders
+        near = lowest(frame.dist, frame.targetable & ground[:, None, :],
+                      tie=np.broadcast_to(listed[:, None, :], frame.dist.shape))
+        self._front(frame, orders, marine, marauder, fight, near)
+        self._medivac(frame, orders, marine, marauder, medivac, fight)

@@ -22,7 +22,7 @@ from smac_hard_gym.maps import list_maps
 from smac_hard_gym.opponents import POOLS, SideView, make_opponent, scripts_for_map
 from smac_hard_gym.opponents.base import SMAC_HARD_BASE_POINTS
 from smac_hard_gym.opponents.duel import run_duel
-from smac_hard_gym.units import STATS, S
+from smac_hard_gym.units import STATS, UNITS, S
 
 
 class Battle:
@@ -214,7 +214,7 @@ def test_colossus_splash_fires_at_the_densest_cluster():
     assert battle.commands.target[0, colossus] == 5  # the middle zealot, not the nearer stalker
 
 
-def test_mmm_medivac_heals_the_most_injured_unit():
+def test_mmm_medivac_heals_the_most_injured_unit_once_engaged():
     for script in ("mmm_formation", "marauder_front"):
         battle = Battle("MMM", red="stop", blue=script)
         n = battle.n_red
@@ -223,6 +223,11 @@ def test_mmm_medivac_heals_the_most_injured_unit():
         battle.engine.place(0, n + 1, health=30.0)  # a marine at 2/3 health
         battle.engine.place(0, n + 2, health=12.0)  # a marine at about 1/4: the most injured
         battle.reset_scripts()
+        battle.act()  # steps 0-5 form up: the medivac moves 1 east of the centre, at its own y
+        assert battle.commands.kind[0, medivac] == CMD_MOVE, script
+        battle.steps[:] = 6
+        for slot in range(n):  # red within 8 of every blue marauder: engaged at once
+            battle.engine.place(0, slot, x=17.0, y=14.0 + 0.4 * slot)
         battle.act()
         assert battle.commands.kind[0, medivac] == CMD_HEAL, script
         assert battle.commands.target[0, medivac] == n + 2, script
@@ -438,3 +443,36 @@ def test_surround_3z_roles_can_repeat_one_zealot_and_leave_another_out():
     # List [0, 0, 1]: slots (24, 14), (24, 10), (24, 18); zealot 0's second order (24, 10) is the one that counts.
     assert kind.tolist() == [CMD_MOVE, CMD_MOVE, CMD_NOOP]
     np.testing.assert_allclose([x[0], y[0], x[1], y[1]], [24.0, 10.0, 24.0, 18.0])
+
+
+def test_mmm_formation_marauders_hold_the_front_line_two_west_of_the_marines():
+    battle = Battle("MMM", red="stop", blue="mmm_formation")
+    n = battle.n_red
+    marauders = [slot for slot in range(n, n + 10) if UNITS[battle.state.utype[0, slot]].base == "marauder"]
+    assert marauders == [n + 7, n + 8]  # blue: marines 0-6, marauders 7-8, medivac 9
+    for k in range(7):
+        battle.engine.place(0, n + k, x=20.0, y=13.0 + k)  # marines' centre x = 20: the front line x = 18
+    battle.engine.place(0, marauders[0], x=17.0, y=15.0)  # west of the line: attacks
+    battle.engine.place(0, marauders[1], x=19.0, y=17.0)  # east of it: moves onto it
+    for slot in range(battle.n_red):
+        battle.engine.place(0, slot, x=12.0, y=12.0 + slot)  # within 8 of both marauders
+    battle.reset_scripts()
+    battle.steps[:] = 6
+    kind, target, x, y = _orders(battle)
+    a, b = marauders[0] - n, marauders[1] - n
+    assert kind[a] == CMD_ATTACK and target[a] == target[0]  # the army's one target
+    assert kind[b] == CMD_MOVE and (x[b], y[b]) == (18.0, 17.0)
+
+
+def test_marauder_front_forms_marauders_1_either_side_of_the_centre():
+    battle = Battle("MMM", red="stop", blue="marauder_front")
+    n = battle.n_red
+    battle.reset_scripts()
+    st = battle.state
+    cx, cy = st.x[0, n:n + 9].mean(), st.y[0, n:n + 9].mean()  # marines and marauders
+    kind, _, x, y = _orders(battle)
+    assert (kind == CMD_MOVE).all()
+    np.testing.assert_allclose([x[7], y[7], x[8], y[8]], [cx - 2, cy - 1, cx - 2, cy + 1])
+    np.testing.assert_allclose(x[:7], cx)
+    np.testing.assert_allclose(y[:7], st.y[0, n:n + 7] - 3.5 + np.arange(7))
+    np.testing.assert_allclose([x[9], y[9]], [cx + 1, st.y[0, n + 9]])
