@@ -254,12 +254,14 @@ def test_pincer_swings_through_smac_hards_corridor_waypoints():
     battle.reset_scripts()
     battle.act()
     n = battle.n_red
+    st = battle.state
     assert (battle.commands.kind[0, n:] == CMD_MOVE).all()
     points = np.stack([battle.commands.x[0, n:], battle.commands.y[0, n:]], axis=1)
-    # SMAC-HARD's corridor pincer goes via (15, 22) and (22, 15); half of the 24 zerglings each way.
-    for waypoint in ((15.0, 22.0), (22.0, 15.0)):
-        close = np.hypot(*(points - waypoint).T) < 0.2
-        assert close.sum() == 12, (waypoint, points)
+    # SMAC-HARD's cut-offs: x > 28.25, or x > 27.5 and y < 27.8, go via (15, 22); the rest via (22, 15).
+    x, y = st.x[0, n:], st.y[0, n:]
+    first = (x > 28.25) | ((x > 27.5) & (y < 27.8))
+    np.testing.assert_allclose(points[first], np.broadcast_to([15.0, 22.0], points[first].shape))
+    np.testing.assert_allclose(points[~first], np.broadcast_to([22.0, 15.0], points[~first].shape))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -443,6 +445,115 @@ def test_surround_3z_roles_can_repeat_one_zealot_and_leave_another_out():
     # List [0, 0, 1]: slots (24, 14), (24, 10), (24, 18); zealot 0's second order (24, 10) is the one that counts.
     assert kind.tolist() == [CMD_MOVE, CMD_MOVE, CMD_NOOP]
     np.testing.assert_allclose([x[0], y[0], x[1], y[1]], [24.0, 10.0, 24.0, 18.0])
+
+
+def test_blob_reverts_to_moving_when_the_centres_drift_apart():
+    battle = Battle("corridor", red="stop", blue="blob")
+    n = battle.n_red
+    zealot_centre = battle.state.x[0, :n].mean(), battle.state.y[0, :n].mean()
+    for k in range(24):
+        battle.engine.place(0, n + k, x=zealot_centre[0] + 1.0 + 0.05 * k, y=zealot_centre[1] + 1.0)
+    battle.reset_scripts()
+    kind, _, _, _ = _orders(battle)  # centres about 1.9 apart: each attack-moves onto its nearest zealot
+    assert (kind == CMD_ATTACK_MOVE).all()
+    for k in range(24):
+        battle.engine.place(0, n + k, x=zealot_centre[0] + 3.0 + 0.05 * k)
+    kind, _, x, y = _orders(battle)  # now more than 3 apart: back to moving onto the zealots' centre
+    assert (kind == CMD_MOVE).all()
+    np.testing.assert_allclose(x, zealot_centre[0])
+    np.testing.assert_allclose(y, zealot_centre[1])
+
+
+def test_pincer_stops_on_a_group_centre_within_6_and_takes_the_weaker_of_the_two_nearest_by_hull():
+    battle = Battle("corridor", red="stop", blue="pincer")
+    n = battle.n_red
+    x, y = battle.state.x[0, n:].copy(), battle.state.y[0, n:].copy()
+    first = (x > 28.25) | ((x > 27.5) & (y < 27.8))  # SMAC-HARD's cut-offs
+    centres = np.array([[x[first].mean(), y[first].mean()], [x[~first].mean(), y[~first].mean()]])
+    battle.reset_scripts()
+    _orders(battle)
+    battle.steps[:] = 1
+    # A zealot 6.2 from group 1's centre, straight south: within 6 of some zerglings, not of either centre.
+    battle.engine.place(0, 0, x=centres[1, 0], y=centres[1, 1] - 6.2)
+    assert np.hypot(x - centres[1, 0], y - (centres[1, 1] - 6.2)).min() < 6.0
+    assert np.hypot(*(centres - [centres[1, 0], centres[1, 1] - 6.2]).T).min() > 6.0
+    kind, _, _, _ = _orders(battle)
+    assert (kind == CMD_MOVE).all()
+    battle.engine.place(0, 0, y=centres[1, 1] - 5.8)  # within 6 of group 1's centre: everyone fights, for good
+    for slot in range(2, 6):
+        battle.engine.place(0, slot, x=10.0 + slot, y=10.0)  # far
+    battle.engine.place(0, 1, x=centres[1, 0] + 0.5, y=centres[1, 1] - 5.5, health=60.0, shield=50.0)
+    battle.engine.place(0, 0, health=70.0, shield=0.0)  # 70 hull and 70 in all; zealot 1: 60 hull, 110 in all
+    kind, target, _, _ = _orders(battle)
+    assert (kind == CMD_ATTACK).all() and (target == 1).all()  # the lower hull of each one's 2 nearest
+
+
+def test_pair_bombing_bombs_a_close_pair_and_sends_the_surplus_to_other_groups():
+    battle = Battle("so_many_baneling", red="stop", blue="pair_bombing")
+    n = battle.n_red
+    points = [(19, 27), (23, 23), (27, 19), (23, 31), (27, 27), (31, 23), (31, 31)]
+    for k in range(32):  # 5 banelings on each of SMAC-HARD's first 6 points, the last 2 on the 7th
+        px, py = points[min(k // 5, 6)]
+        battle.engine.place(0, n + k, x=px + 0.1 * (k % 5), y=py)
+    battle.reset_scripts()
+    _orders(battle)  # step 0: groups formed
+    battle.steps[:] = 5
+    for slot, (x, y) in enumerate([(22.5, 23.0), (23.5, 23.0), (5, 5), (9, 5), (13, 5), (5, 9), (9, 9)]):
+        battle.engine.place(0, slot, x=x, y=y, health=100.0, shield=0.0)
+    battle.engine.place(0, 0, health=30.0)
+    battle.engine.place(0, 1, health=40.0)  # the pair's worse: 40 - 35 = 5 >= 0, 5 - 35 < 0
+    kind, target, x, y = _orders(battle)
+    # Group 1 (banelings 5-9, listed 9, 8, 7, 6, 5): 9 and 8 attack the pair's first zealot, 7, 6, 5 leave.
+    assert kind[9] == kind[8] == CMD_ATTACK and target[9] == target[8] == 0
+    assert (kind[5:8] == CMD_NOOP).all()
+    # Groups without a pair sweep from their point: at step 5, the point itself.
+    assert (kind[0:5] == CMD_MOVE).all() and (x[0], y[0]) == (19.0, 27.0)
+    assert (kind[30:32] == CMD_MOVE).all() and (x[30], y[30]) == (31.0, 31.0)
+
+
+def test_bane_cluster_fans_out_north_and_banelings_share_the_first_densest_zergling():
+    battle = Battle("bane_vs_bane", red="stop", blue="bane_cluster")
+    n = battle.n_red
+    for slot in range(24):  # red: everyone alone, 3 apart
+        battle.engine.place(0, slot, x=2.0 + 3.0 * (slot % 10), y=4.0 + 3.0 * (slot // 10))
+    battle.reset_scripts()
+    kind, target, x, y = _orders(battle)
+    # Blue zerglings 0-19 on a half circle of radius 10 round (16, 21), north side: k -> angle pi k / 20.
+    angle = np.pi * np.arange(20) / 20
+    np.testing.assert_allclose(x[:20], 16.0 + 10.0 * np.cos(angle), atol=1e-9)
+    np.testing.assert_allclose(y[:20], 21.0 + 10.0 * np.sin(angle), atol=1e-9)
+    red_lings = [slot for slot in range(n) if UNITS[battle.state.utype[0, slot]].base == "zergling"]
+    assert (kind[20:] == CMD_ATTACK).all() and (target[20:] == red_lings[0]).all()  # all alone: the first
+
+
+def test_cliff_groups_rebalance_the_left_first_and_wait_when_no_colossus_is_on_their_level():
+    battle = Battle("2c_vs_64zg", red="stop", blue="cliff_groups")
+    n = battle.n_red
+    quarters = [(15.0, 10.5, 0.0), (17.0, 10.5, 0.0), (15.0, 4.0, 0.2), (17.0, 4.0, 0.2)]  # up/down, left/right
+    for k in range(64):
+        x, y, dy = quarters[k // 16]
+        battle.engine.place(0, n + k, x=x, y=y + dy * (k % 16))
+    battle.reset_scripts()
+    kind, _, x, y = _orders(battle)
+    # Left: 16 up < 2 * 16 - 2, so the (32 - 1 - 16) // 2 = 7 lowest down_left zerglings join up_left; the right
+    # is not checked on a step the left changed.
+    assert (kind == CMD_MOVE).all()
+    up_left = np.r_[0:16, 32:39]
+    np.testing.assert_allclose(x[up_left], 3.5)
+    np.testing.assert_allclose(y[up_left], 14.0)
+    np.testing.assert_allclose([x[39], y[39]], [3.5, 6.0])
+    np.testing.assert_allclose([x[48], y[48]], [26.5, 6.0])  # down_right keeps its 16
+    battle.steps[:] = 10
+    battle.engine.place(0, 0, x=12.0, y=16.0)
+    battle.engine.place(0, 1, x=20.0, y=16.0)  # both colossi above y = 12, one nearer each up group
+    kind, target, x, y = _orders(battle)
+    # Now 23 up > 2 * 9 + 2 on the left: its (23 - 18 - 1) // 2 = 2 lowest (32, 33) go back down.
+    up_left = np.r_[0:16, 34:39]
+    assert (kind[up_left] == CMD_ATTACK).all() and (target[up_left] == 0).all()  # nearer to the left group
+    assert (kind[16:32] == CMD_ATTACK).all() and (target[16:32] == 1).all()
+    for k in (32, 33, 39):
+        assert kind[k] == CMD_MOVE and (x[k], y[k]) == (2.5, 10.0)  # down groups wait
+    assert kind[48] == CMD_MOVE and (x[48], y[48]) == (27.5, 10.0)
 
 
 def test_mmm_formation_marauders_hold_the_front_line_two_west_of_the_marines():
