@@ -20,8 +20,8 @@ from smac_hard_gym.opponents.helpers import (
     threatened,
 )
 
-__all__ = ["Nearest", "Weakest", "FocusFire", "Kite", "RetreatWounded", "Stop", "Chase", "RoundRobin",
-           "attack_nearest", "nearest_threat", "back_off"]
+__all__ = ["Nearest", "Weakest", "WeakestEach", "FocusFire", "Kite", "RetreatWounded", "Stop", "Chase",
+           "RoundRobin", "RoundRobinIntended", "attack_nearest", "nearest_threat", "back_off"]
 
 READY_LOOPS = 8.0  # a weapon whose cooldown ends within one env step (8 game loops) will fire this step
 
@@ -60,18 +60,43 @@ class Nearest(BatchScript):
 
 
 class Weakest(BatchScript):
-    """Every unit attacks the enemy with the lowest health + shield it can hit (nearest on a tie).
+    """SMAC-HARD's ``s_3m/script.py`` (in its test pool only): every unit attacks one shared target, the enemy with
+    the lowest health (hull, not shields), the first in index order on a tie.
 
-    The paper's W opponent; also SMAC-HARD's 2m_vs_1z zealot (lower-HP marine, nearest on a tie), 2s_vs_1sc spine
-    crawler (lower-HP stalker within its range) and 3m test script (focus the lowest-HP marine).
+    Deliberate difference: the shared target is chosen among the enemies some own unit can hit, and a unit that
+    cannot hit it attacks its nearest enemy instead (on SMAC-HARD's marine maps every unit can hit every enemy).
+    Earlier releases had each unit pick its own lowest health + shield enemy, nearest on a tie, which can split
+    the fire; that rule on hull health is ``weakest_each``.
     """
 
     name = "weakest"
-    description = "every unit attacks the enemy with the lowest health+shield (nearest on a tie)"
+    description = ("every unit attacks one shared target: the enemy with the lowest health, the first on a tie "
+                   "(SMAC-HARD s_3m)")
 
     def plan(self, frame: Frame, orders: Orders) -> None:
-        hp = np.broadcast_to(frame.enemy_hp[:, None, :], frame.dist.shape)
-        orders.attack(frame.own_alive, lowest(hp, frame.targetable, tie=frame.dist))
+        target = argmin_masked(frame.enemy_health, frame.enemy_alive & frame.targetable.any(axis=1))
+        common = np.broadcast_to(target[:, None], frame.own_alive.shape)
+        can = np.take_along_axis(frame.targetable, np.maximum(common, 0)[:, :, None], axis=2)[:, :, 0]
+        can &= common >= 0
+        attack_nearest(frame, orders, frame.own_alive & ~can)
+        orders.attack(can, common)
+
+
+class WeakestEach(BatchScript):
+    """Every unit attacks the enemy with the lowest health (hull) that it can hit, the nearest on a tie.
+
+    SMAC-HARD's ``s_2m_vs_1z/script.py`` as it runs: the zealot attacks the marine with the lower health, the
+    nearer one on a tie, and the last marine when one is left. (Earlier releases' per-unit ``weakest``, which used
+    health + shield.)
+    """
+
+    name = "weakest_each"
+    description = ("each unit attacks the enemy with the lowest health it can hit, the nearest on a tie "
+                   "(SMAC-HARD s_2m_vs_1z)")
+
+    def plan(self, frame: Frame, orders: Orders) -> None:
+        health = np.broadcast_to(frame.enemy_health[:, None, :], frame.dist.shape)
+        orders.attack(frame.own_alive, lowest(health, frame.targetable, tie=frame.dist))
 
 
 class FocusFire(BatchScript):
@@ -144,7 +169,8 @@ class Stop(BatchScript):
 
 
 class Chase(BatchScript):
-    """Every unit attack-moves to the current position of its nearest enemy (SMAC-HARD's 6h_vs_8z easy script)."""
+    """Every unit attack-moves to the current position of its nearest enemy, the first in index order on a tie:
+    SMAC-HARD's ``s_6h_vs_8z/script_easy.py`` as it runs."""
 
     name = "chase"
     description = "every unit attack-moves to the position of its nearest enemy"
@@ -158,16 +184,42 @@ class Chase(BatchScript):
 
 
 class RoundRobin(BatchScript):
-    """Units are dealt out over the enemies in turn (unit i gets enemy i mod m) and attack their assigned enemy
-    until it dies, then their nearest (SMAC-HARD's 3s_vs_Nz ``script_group`` and 6h_vs_8z hard script, with the
-    intended keep-until-dead rule)."""
+    """SMAC-HARD's ``s_3s_vs_Nz/script_group.py`` and ``s_6h_vs_8z/script_hard.py`` as they run: every unit
+    attacks its nearest enemy (the first in index order on a tie), re-chosen every step.
+
+    Both scripts deal the zealots over the enemies in turn on the first step and retarget to the nearest only when
+    the stored target's ``is_active`` is false. That protobuf field says whether a building is training; it is
+    always false for units, so the retarget runs every step and the round-robin never does. Earlier releases
+    played the intended round-robin under this name; it is now ``round_robin_intended``.
+    """
 
     name = "round_robin"
-    description = "units are dealt over the enemies in turn, keep their target until it dies, then nearest"
+    description = ("every unit attacks its nearest enemy every step: SMAC-HARD's round-robin scripts as they run "
+                   "(their round-robin branch is dead)")
 
     def plan(self, frame: Frame, orders: Orders) -> None:
-        # The assignment is fixed by index, so it needs no memory.
-        assigned = np.broadcast_to(np.arange(frame.n_own) % frame.n_enemy, frame.own_alive.shape)
-        ok = np.take_along_axis(frame.targetable, assigned[:, :, None], axis=2)[:, :, 0]
-        attack_nearest(frame, orders, frame.own_alive & ~ok)
-        orders.attack(ok, assigned)
+        attack_nearest(frame, orders)
+
+
+class RoundRobinIntended(BatchScript):
+    """The round-robin that SMAC-HARD's ``script_group`` / ``script_hard`` meant to play (it never runs there, see
+    :class:`RoundRobin`): on the first step unit k (index order) is dealt enemy k mod m; each unit attacks its
+    stored target until that dies, then takes its nearest and keeps that one until it dies."""
+
+    name = "round_robin_intended"
+    description = ("units are dealt over the enemies in turn and keep their target until it dies, then take their "
+                   "nearest (the round-robin SMAC-HARD's script_group intended)")
+
+    def __init__(self) -> None:
+        self.memory = Memory(target=(("own",), np.int64, -1), dealt=((), bool, False))
+
+    def plan(self, frame: Frame, orders: Orders) -> None:
+        rows = frame.rows
+        fresh = ~self.memory.dealt[rows]
+        self.memory.dealt[rows] = True
+        dealt = np.broadcast_to(np.arange(frame.n_own) % frame.n_enemy, frame.own_alive.shape)
+        stored = np.where(fresh[:, None], dealt, self.memory.target[rows])
+        keep = (stored >= 0) & np.take_along_axis(frame.targetable, np.maximum(stored, 0)[:, :, None], axis=2)[..., 0]
+        target = np.where(keep, stored, nearest(frame.dist, frame.targetable))
+        self.memory.target[rows] = np.where(frame.own_alive, target, stored)
+        orders.attack(frame.own_alive, target)

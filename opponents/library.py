@@ -3,9 +3,13 @@
 - The two base opponents: ``smac`` (SMAC's one-player map behaviour: one attack-move at spawn, then SC2's automatic
   targeting) and ``base`` (SMAC-HARD's ``base_script``: a per-map attack-move re-issued every step). See
   :mod:`smac_hard_gym.opponents.base`.
-- Generic scripts (``nearest``, ``weakest``, ``focus_fire``, ``kite``, ``retreat_wounded``,
-  ``round_robin``, ``chase``, ``stop``) play every map.
+- Generic scripts (``nearest``, ``weakest``, ``weakest_each``, ``focus_fire``, ``kite``, ``retreat_wounded``,
+  ``round_robin``, ``round_robin_intended``, ``chase``, ``stop``) play every map.
 - Map scripts are the SMAC-HARD strategies, written anew; each plays the maps whose pool lists it.
+- Every script in a pool behaves as SMAC-HARD's code runs (dead branches dead, its own tie-breaks and thresholds);
+  each class docstring names its SMAC-HARD file and every deliberate difference. ``round_robin`` is SMAC-HARD's
+  round-robin as it runs (attack the nearest every step); the round-robin it intended is ``round_robin_intended``,
+  in no pool.
 - ``default`` on a map is its SMAC-HARD pool (``SCRIPT_DICT`` at SMAC-HARD's newest commit, with SMAC-HARD's
   ``base``); ``blackbox`` is that pool without ``base`` (the paper's black-box evaluation set). A map without a
   SMAC-HARD pool (a user's map) gets :data:`FALLBACK_POOL`.
@@ -26,13 +30,15 @@ from smac_hard_gym.opponents.generic import (
     Nearest,
     RetreatWounded,
     RoundRobin,
+    RoundRobinIntended,
     Stop,
     Weakest,
+    WeakestEach,
 )
 from smac_hard_gym.opponents.marines import ColumnAdvance, LineAdvance
 from smac_hard_gym.opponents.mmm import MarauderFront, MMMFormation
 from smac_hard_gym.opponents.protoss import CenterFocus, ColossusSplash, KitePush, StalkerRetreat, Surround
-from smac_hard_gym.opponents.zerg import BaneCluster, Blob, CliffGroups, PairBombing, Pincer
+from smac_hard_gym.opponents.zerg import BaneCluster, Blob, CliffGroups, PairBombing, Pincer, SpineWeaker
 
 __all__ = ["ScriptInfo", "SCRIPTS", "POOLS", "FALLBACK_POOL", "MIXTURE_NAMES", "scripts_for_map", "pool_for_map",
            "is_builtin"]
@@ -46,7 +52,7 @@ _SURROUND_POOL = ("round_robin", "surround", "base")
 _MMM_POOL = ("mmm_formation", "marauder_front", "base")
 
 POOLS: dict[str, tuple[str, ...]] = {
-    "3m": ("line_front", "base"),  # SMAC-HARD's s_3m (focus the weakest) is only in its test dict: ``weakest``
+    "3m": ("line_front", "base"),  # SMAC-HARD's s_3m (one shared weakest target) is only in its test dict: ``weakest``
     "8m": _LINE_POOL,
     "5m_vs_6m": _LINE_POOL,
     "8m_vs_9m": _LINE_POOL,
@@ -60,8 +66,8 @@ POOLS: dict[str, tuple[str, ...]] = {
     "3s_vs_4z": _SURROUND_POOL,
     "3s_vs_5z": _SURROUND_POOL,
     "1c3s5z": ("colossus_splash", "base"),
-    "2m_vs_1z": ("weakest", "base"),
-    "2s_vs_1sc": ("weakest", "base"),
+    "2m_vs_1z": ("weakest_each", "base"),  # s_2m_vs_1z: the lower-health marine, the nearer on a tie
+    "2s_vs_1sc": ("spine_weaker", "base"),
     "2c_vs_64zg": ("cliff_groups", "base"),
     "so_many_baneling": ("pair_bombing", "base"),
     "bane_vs_bane": ("bane_cluster", "base"),
@@ -90,13 +96,13 @@ def _maps_with(name: str) -> tuple[str, ...]:
     return tuple(m for m, pool in POOLS.items() if name in pool)
 
 
-_GENERIC: list[Callable[[], Script]] = [SmacScript, BaseScript, Nearest, Weakest, FocusFire, Kite, RetreatWounded, RoundRobin,
-                                        Chase, Stop]
+_GENERIC: list[Callable[[], Script]] = [SmacScript, BaseScript, Nearest, Weakest, WeakestEach, FocusFire, Kite,
+                                        RetreatWounded, RoundRobin, RoundRobinIntended, Chase, Stop]
 _MAP_SCRIPTS: list[Callable[[], Script]] = [
     lambda: LineAdvance("front"), lambda: LineAdvance("weakest"),
     lambda: ColumnAdvance("weakest"), lambda: ColumnAdvance("centroid"), lambda: ColumnAdvance("point"),
     StalkerRetreat, CenterFocus, KitePush, ColossusSplash, Surround, MMMFormation, MarauderFront,
-    Blob, Pincer, PairBombing, BaneCluster, CliffGroups,
+    Blob, Pincer, PairBombing, BaneCluster, CliffGroups, SpineWeaker,
 ]
 
 

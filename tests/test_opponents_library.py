@@ -106,7 +106,8 @@ def test_pool_script_beats_a_side_that_only_stops(map_name, script):
 
 
 def test_generic_scripts_beat_a_side_that_only_stops():
-    for name in ("nearest", "weakest", "kite", "retreat_wounded", "focus_fire", "round_robin", "chase"):
+    for name in ("nearest", "weakest", "weakest_each", "kite", "retreat_wounded", "focus_fire", "round_robin",
+                 "round_robin_intended", "chase"):
         result = run_duel("3s5z", red="stop", blue=name, episodes=1, guard=True)
         assert result.blue_wins == 1, result.summary()
 
@@ -165,17 +166,24 @@ def test_kite_keeps_stalkers_out_of_zealot_reach_longer_than_nearest():
     assert kite < nearest, (kite, nearest)
 
 
-def test_weakest_spine_crawler_only_targets_stalkers_in_reach():
-    battle = Battle("2s_vs_1sc", red="stop", blue="weakest")
-    crawler = 2  # (13.92, 20.04), reach 7 + 1.125 + 0.625 = 8.75 between centres
-    battle.engine.place(0, 0, x=13.92, y=13.0, health=80.0, shield=0.0)  # 7.04 away, in reach
-    battle.engine.place(0, 1, x=13.92, y=10.5, health=5.0, shield=0.0)  # 9.54 away, weaker but out of reach
+def test_spine_weaker_targets_the_lower_health_stalker_within_8_7_and_none_when_one_is_left():
+    battle = Battle("2s_vs_1sc", red="stop", blue="spine_weaker")
+    crawler = 2  # at (13.92, 20.04)
+    battle.engine.place(0, 0, x=13.92, y=13.0, health=80.0, shield=0.0)  # 7.04 away
+    battle.engine.place(0, 1, x=13.92, y=11.36, health=5.0, shield=0.0)  # 8.68 away: closer than 8.7
     battle.reset_scripts()
     battle.act()
-    assert battle.commands.kind[0, crawler] == CMD_ATTACK and battle.commands.target[0, crawler] == 0
-    battle.engine.place(0, 1, y=14.0)  # now both in reach: the weaker one
+    assert battle.commands.kind[0, crawler] == CMD_ATTACK and battle.commands.target[0, crawler] == 1
+    battle.engine.place(0, 1, y=11.32)  # 8.72 away: only stalker 0 is closer than 8.7 (the weapon reaches 8.75)
+    battle.act()
+    assert battle.commands.target[0, crawler] == 0
+    battle.engine.place(0, 1, y=14.0, health=60.0, shield=80.0)  # both close, equal hull: the nearer, by hull
+    battle.engine.place(0, 0, health=60.0, shield=0.0)
     battle.act()
     assert battle.commands.target[0, crawler] == 1
+    battle.engine.place(0, 0, alive=False, health=0.0)  # one stalker left: SMAC-HARD gives no order
+    battle.act()
+    assert battle.commands.kind[0, crawler] == CMD_NOOP
 
 
 def test_line_front_forms_smac_hards_line_then_focuses_the_frontmost_enemy():
@@ -336,6 +344,34 @@ def test_column_forms_one_column_by_y_and_rechecks_contact_every_step():
     np.testing.assert_allclose(x, battle.state.x[0, n:] - 2.0)
 
 
+def test_weakest_shares_one_target_lowest_hull_first_on_a_tie():
+    battle = Battle("3m", red="stop", blue="weakest")
+    battle.engine.place(0, 0, x=5.0, y=16.0)  # the farthest; all at full health
+    battle.engine.place(0, 1, x=18.0, y=15.0)
+    battle.engine.place(0, 2, x=18.0, y=17.0)
+    battle.reset_scripts()
+    kind, target, _, _ = _orders(battle)
+    assert (kind == CMD_ATTACK).all() and (target == 0).all()
+    battle = Battle("2s3z", red="stop", blue="weakest")
+    battle.engine.place(0, 0, health=50.0, shield=0.0)  # stalker: 50 hull, 50 in all
+    battle.engine.place(0, 2, health=40.0, shield=50.0)  # zealot: 40 hull, 90 in all
+    battle.reset_scripts()
+    _, target, _, _ = _orders(battle)
+    assert (target == 2).all()  # health, not health + shield
+
+
+def test_weakest_each_takes_the_nearer_of_two_equal_marines():
+    battle = Battle("2m_vs_1z", red="stop", blue="weakest_each")
+    battle.engine.place(0, 0, x=10.0, y=16.0)
+    battle.engine.place(0, 1, x=18.0, y=16.0)  # nearer to the zealot
+    battle.reset_scripts()
+    kind, target, _, _ = _orders(battle)
+    assert kind[0] == CMD_ATTACK and target[0] == 1
+    battle.engine.place(0, 0, health=40.0)
+    _, target, _, _ = _orders(battle)
+    assert target[0] == 0
+
+
 def test_stalker_retreat_thresholds_read_hull_health():
     battle = Battle("2s3z", red="stop", blue="stalker_retreat")
     n = battle.n_red
@@ -398,6 +434,22 @@ def test_colossus_splash_ties_go_to_the_first_enemy():
 def _zealots_at(battle: Battle, points: list[tuple[float, float]]) -> None:
     for k, (x, y) in enumerate(points):
         battle.engine.place(0, battle.n_red + k, x=x, y=y)
+
+
+def test_round_robin_is_nearest_every_step_and_the_intended_one_keeps_its_dealt_target():
+    positions = [(20.0, 14.0), (20.0, 15.0), (20.0, 16.0), (20.0, 17.0), (20.0, 18.0)]
+    stalkers = [(10.0, 10.0), (10.0, 22.0), (14.0, 16.0)]  # stalker 2 is every zealot's nearest
+    for name, expected in (("round_robin", [2, 2, 2, 2, 2]), ("round_robin_intended", [0, 1, 2, 0, 1])):
+        battle = Battle("3s_vs_5z", red="stop", blue=name)
+        _zealots_at(battle, positions)
+        for slot, (x, y) in enumerate(stalkers):
+            battle.engine.place(0, slot, x=x, y=y)
+        battle.reset_scripts()
+        kind, target, _, _ = _orders(battle)
+        assert (kind == CMD_ATTACK).all() and target.tolist() == expected, name
+    battle.engine.place(0, 0, alive=False, health=0.0, shield=0.0)  # zealots 0 and 3 lose their dealt stalker
+    _, target, _, _ = _orders(battle)
+    assert target.tolist() == [2, 1, 2, 2, 1]
 
 
 def test_surround_stage_0_forms_at_zealot_0_while_the_enemy_is_over_13_away():
