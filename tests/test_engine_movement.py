@@ -179,3 +179,38 @@ def test_one_battle_equals_one_lane_of_a_batch():
         single = _rollout(batch=1, steps=40, seed=3, lanes=np.array([lane]))
         for sb, ss in zip(batch, single, strict=True):
             assert np.array_equal(sb[:, lane], ss[:, 0])
+
+
+def _send_three_marines_to(point, positions):
+    engine = engine_with(["Marine_RL"] * 3, ["Marine"], {**dict(enumerate(positions)), 3: (30.0, 30.0)})
+    engine.commands.kind[0, :3] = CMD_MOVE
+    engine.commands.x[0, :3], engine.commands.y[0, :3] = point
+    return engine
+
+
+def test_a_group_sent_to_one_point_stops_as_a_clump_around_it():
+    # Three marines in a file 1 apart walk to (20, 10). The first reaches the point and stops; the second stops when
+    # it touches the first (edges within 0.1, inside 3 of the point), the third when it touches the second. Without
+    # group arrival the two followers would push toward the occupied point for ever.
+    engine = _send_three_marines_to((20.0, 10.0), [(10.0, 10.0), (9.0, 10.0), (8.0, 10.0)])
+    for _ in range(20):
+        engine.step()
+        engine.commands.clear()
+    st = engine.state
+    assert (st.order[0, :3] == 0).all()  # all idle
+    assert st.x[0, 0] == pytest.approx(20.0, abs=0.05)
+    # Each follower stands touching the one ahead: 0.75 between centres, within the 0.1 of touching.
+    assert 20.0 - 0.85 - 0.05 <= st.x[0, 1] <= 20.0 - 0.75 + 0.05
+    assert st.x[0, 1] - 0.85 - 0.05 <= st.x[0, 2] <= st.x[0, 1] - 0.75 + 0.05
+
+
+def test_passing_an_idle_unit_far_from_the_point_does_not_stop_a_move():
+    # A marine idles at (14, 10.8), touching the path of a marine walking from (10, 10) to (20, 10) but 6 from its
+    # point: the walker goes on to the point.
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Marine"], {0: (10.0, 10.0), 1: (14.0, 10.8), 2: (30.0, 30.0)})
+    engine.commands.kind[0, 0] = CMD_MOVE
+    engine.commands.x[0, 0], engine.commands.y[0, 0] = 20.0, 10.0
+    for _ in range(12):
+        engine.step()
+        engine.commands.clear()
+    assert engine.state.x[0, 0] == pytest.approx(20.0, abs=0.05)

@@ -73,6 +73,8 @@ _SHIELD_DELAY = SHIELD_REGEN_DELAY_LOOPS
 _MIN_DAMAGE = MIN_DAMAGE
 _BIO = BIO
 _ARRIVE = 0.05  # a move order is complete this close to its point
+_CROWD_ARRIVE = 3.0  # ... or this close, touching a unit of its side that has arrived (SC2's group arrival)
+_TOUCH = 0.1  # two units touch when their edges are this close
 _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the scan range
 _EDGE = 1e-4  # keeps positions strictly inside the map
 _INF = 1e300
@@ -400,19 +402,54 @@ def _slide(px, py, nx, ny, mover, walk):
 
 
 @inline
-def _movement(alive, x, y, x0, y0, order, order_x, order_y, target, slot_stats, walk, next_hop, los, open_field):
+def _touches_arrived(i, gx, gy, side, alive, x0, y0, order, slot_stats):
+    """Whether unit i touches a unit of its side, on its plane, that was idle when the phase began near i's goal."""
+    for j in range(alive.shape[0]):
+        if j == i or not alive[j] or side[j] != side[i] or order[j] != ORDER_IDLE:
+            continue
+        if slot_stats[j, _MOVER] != slot_stats[i, _MOVER]:
+            continue
+        if not _within(x0[j], y0[j], gx, gy, _CROWD_ARRIVE):
+            continue
+        if _within(x0[i], y0[i], x0[j], y0[j], slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS] + _TOUCH):
+            return True
+    return False
+
+
+@inline
+def _movement(side, alive, x, y, x0, y0, arrived, order, order_x, order_y, target, slot_stats, walk, next_hop, los,
+              open_field):
     """Every unit steps toward its target (unless in range) or its order point.
 
-    Simultaneous: whether a unit is in range and where its target stands are read from ``x0, y0``, the positions
-    when the phase began. Read live, the lower slots (red) would move first and the higher slots would find the gap
-    already closed, so red always advanced further than blue in a mirrored fight.
+    Simultaneous: whether a unit is in range, where its target stands and whether it has arrived are read from the
+    state when the phase began (``x0, y0`` positions, ``arrived`` scratch). Read live, the lower slots (red) would
+    move first and the higher slots would find the gap already closed, so red always advanced further than blue in a
+    mirrored fight.
+
+    Arrival: a move or attack-move is complete at its point, or (SC2's group arrival) once the unit is near the point
+    and touches a unit of its side that has already arrived there; a crowd sent to one point stops as a clump around
+    it instead of pushing forever, and every unit in it ends idle.
     """
     n = alive.shape[0]
     for i in range(n):
         x0[i] = x[i]
         y0[i] = y[i]
     for i in range(n):
+        arrived[i] = False
+        o = order[i]
+        if not alive[i] or target[i] >= 0 or not (o == ORDER_MOVE or o == ORDER_ATTACK_MOVE):
+            continue
+        gx, gy = order_x[i], order_y[i]
+        dx, dy = gx - x0[i], gy - y0[i]
+        d2 = dx * dx + dy * dy
+        if d2 <= _ARRIVE * _ARRIVE or (d2 <= _CROWD_ARRIVE * _CROWD_ARRIVE and _touches_arrived(
+                i, gx, gy, side, alive, x0, y0, order, slot_stats)):
+            arrived[i] = True
+    for i in range(n):
         if not alive[i]:
+            continue
+        if arrived[i]:
+            order[i] = ORDER_IDLE
             continue
         speed = slot_stats[i, _SPEED]
         o = order[i]
@@ -426,10 +463,6 @@ def _movement(alive, x, y, x0, y0, order, order_x, order_y, target, slot_stats, 
             gx, gy = x0[j], y0[j]
         elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
             gx, gy = order_x[i], order_y[i]
-            dx, dy = gx - x[i], gy - y[i]
-            if dx * dx + dy * dy <= _ARRIVE * _ARRIVE:
-                order[i] = ORDER_IDLE
-                continue
         else:
             continue
         mover = int(slot_stats[i, _MOVER])
@@ -699,14 +732,15 @@ def _deaths(alive, health, shield, order, target):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, jitter,
-                by_x, key, engaged, x0, y0):
+                by_x, key, engaged, x0, y0, arrived):
     """Apply battle b's commands, then run ``n_loops`` game loops on it.
 
     ``slot_stats`` (U, columns) is the unit table row of each slot. ``jitter`` = (low, high): each attack's cooldown
     gets a uniform random delay in [low, high) loops; (0, 0) for none. ``by_x`` (B, U) int32 holds each battle's
     slots ordered by x (any permutation will do; kept between steps because it is then nearly sorted) and ``key``
-    (B, U) float64 is scratch for the sort; ``engaged`` (B, U) int32 and ``x0``, ``y0`` (B, U) float64 are scratch for
-    targeting's and movement's snapshots (simultaneous decisions, independent of slot order).
+    (B, U) float64 is scratch for the sort; ``engaged`` (B, U) int32, ``x0``, ``y0`` (B, U) float64 and ``arrived``
+    (B, U) bool are scratch for targeting's and movement's snapshots (simultaneous decisions, independent of slot
+    order).
     """
     rng = st.rng[b:b + 1]
     jitter_lo, jitter_hi = jitter[0], jitter[1]
@@ -716,6 +750,7 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
     order, order_target, order_x, order_y = st.order[b], st.order_target[b], st.order_x[b], st.order_y[b]
     target, attacker, fired_at, burst = st.target[b], st.attacker[b], st.fired_at[b], st.burst[b]
     order_by_x, sort_key, engaged_at_loop, x_at_loop, y_at_loop = by_x[b], key[b], engaged[b], x0[b], y0[b]
+    arrived_now = arrived[b]
     max_radius = 0.0
     for i in range(slot_stats.shape[0]):
         max_radius = max(max_radius, slot_stats[i, _RADIUS])
@@ -725,8 +760,8 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
     for _ in range(n_loops):
         _timers(alive, alive0, health, shield, energy, cooldown, shield_wait, slot_stats)
         _targeting(side, alive, x, y, health, order, order_target, target, engaged_at_loop, attacker, slot_stats)
-        _movement(alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats, walk, next_hop, los,
-                  open_field)
+        _movement(side, alive, x, y, x_at_loop, y_at_loop, arrived_now, order, order_x, order_y, target, slot_stats,
+                  walk, next_hop, los, open_field)
         worst = _separation(alive, x, y, x_at_loop, y_at_loop, order, slot_stats, walk, order_by_x, sort_key,
                             max_radius)
         _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
@@ -744,7 +779,7 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, active,
-               jitter, by_x, key, engaged, x0, y0, workers, next_battle):
+               jitter, by_x, key, engaged, x0, y0, arrived, workers, next_battle):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``.
 
     One prange iteration per worker thread (``workers``: numba's thread count); each takes chunks of battles from
@@ -761,14 +796,14 @@ def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, l
             for b in range(start, min(start + chunk, n_battles)):
                 if active[b]:
                     step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                                n_loops, jitter, by_x, key, engaged, x0, y0)
+                                n_loops, jitter, by_x, key, engaged, x0, y0, arrived)
 
 
 @njit(cache=True, error_model="numpy")
 def step_batch_serial(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                      active, jitter, by_x, key, engaged, x0, y0):
+                      active, jitter, by_x, key, engaged, x0, y0, arrived):
     """``step_batch`` on the calling thread: small batches would pay more to wake the thread pool than they gain."""
     for b in range(st.alive.shape[0]):
         if active[b]:
             step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                        jitter, by_x, key, engaged, x0, y0)
+                        jitter, by_x, key, engaged, x0, y0, arrived)
