@@ -71,7 +71,7 @@ class Weakest(BatchScript):
 
     name = "weakest"
     description = ("every unit attacks one shared target: the enemy with the lowest health, the first on a tie "
-                   "(SMAC-HARD s_3m)")
+                   "(SMAC-HARD s_3m; until this release each unit chose its own, now weakest_each)")
 
     def plan(self, frame: Frame, orders: Orders) -> None:
         target = argmin_masked(frame.enemy_health, frame.enemy_alive & frame.targetable.any(axis=1))
@@ -195,7 +195,7 @@ class RoundRobin(BatchScript):
 
     name = "round_robin"
     description = ("every unit attacks its nearest enemy every step: SMAC-HARD's round-robin scripts as they run "
-                   "(their round-robin branch is dead)")
+                   "(their round-robin branch is dead; the intended one is now round_robin_intended)")
 
     def plan(self, frame: Frame, orders: Orders) -> None:
         attack_nearest(frame, orders)
