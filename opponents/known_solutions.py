@@ -347,9 +347,6 @@ _FACTORIES: dict[str, Callable[[], BatchScript]] = {
 }
 CONTROLLERS: dict[str, str] = {name: factory().description for name, factory in _FACTORIES.items()}
 
-# Claims the engine does not reproduce yet, with what was found (docs/known_solutions.md has the measurements).
-_CORRIDOR_OPEN = "holding the neck kills more zerglings (19 of 24) than the open (13), but neither wins"
-
 CLAIMS: tuple[Claim, ...] = (
     Claim("2m_vs_1z", "alternating_aggro", "smac", "SC2's zealot turns on the marine shooting it", at_least=0.8),
     Claim("2m_vs_1z", "alternating_aggro", "weakest", "a focus-fire zealot never switches: the runner is caught",
@@ -360,7 +357,7 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("3s_vs_4z", "stalker_kite", "smac", "kiting beats four zealots", at_least=0.8),
     Claim("3s_vs_4z", "stalker_stand", "smac", "standing stalkers lose to four zealots", at_most=0.2),
     Claim("corridor", "hold_choke", "smac", "zerglings come through the neck a few at a time",
-          better_than="open_fight", open_issue=_CORRIDOR_OPEN),
+          better_than="open_fight"),
     Claim("3s5z_vs_3s6z", "hide_pick_off", "smac", "SMAC's opponent idles at its point and can be pulled apart",
           at_least=0.8),
     Claim("3s5z_vs_3s6z", "hide_pick_off", "base", "SMAC-HARD's base re-issues its attack-move: nobody is pulled",

@@ -102,7 +102,9 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     expected_x, expected_y, expected_worst = _reference_pass(names, alive, hold, x, y)
     got_x, got_y = x.copy(), y.copy()
     scratch_x, scratch_y = np.zeros(len(names)), np.zeros(len(names))
-    worst = _separation(alive, got_x, got_y, scratch_x, scratch_y, order, slot_stats, walk, by_x, key,
+    n = len(names)
+    worst = _separation(np.zeros(n, np.int8), alive, got_x, got_y, scratch_x, scratch_y, order, np.zeros(n),
+                        np.zeros(n), np.full(n, -1, np.int32), slot_stats, walk, by_x, key,
                         slot_stats[:, S["radius"]].max())
     np.testing.assert_allclose(got_x, expected_x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got_y, expected_y, rtol=0, atol=1e-12)
@@ -121,7 +123,8 @@ def test_sweep_passes_clear_a_dense_crowd():
     alive, order = np.ones(n, dtype=bool), np.zeros(n, dtype=np.int8)
     by_x, key, scratch_x, scratch_y = np.arange(n, dtype=np.int32), np.zeros(n), np.zeros(n), np.zeros(n)
     for _ in range(400):
-        if _separation(alive, x, y, scratch_x, scratch_y, order, slot_stats, walk, by_x, key, 0.375) < 1e-6:
+        if _separation(np.zeros(n, np.int8), alive, x, y, scratch_x, scratch_y, order, np.zeros(n), np.zeros(n),
+                       np.full(n, -1, np.int32), slot_stats, walk, by_x, key, 0.375) < 1e-6:
             break
     dist = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) + np.eye(n) * 10
     assert dist.min() > 0.75 - 1e-5

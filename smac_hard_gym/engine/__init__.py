@@ -95,7 +95,6 @@ class BattleEngine:
         # Movement's snapshot of positions at the start of the phase (units move simultaneously).
         self._x0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
         self._y0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
-        self._arrived = np.zeros((self.batch_size, self.n_units), dtype=np.bool_)  # movement's arrivals this loop
         self._next_battle = np.zeros(1, dtype=np.int64)  # the parallel kernel's shared work counter
         self.commands = Commands.empty(self.batch_size, self.n_units)
         self._all_active = np.ones(self.batch_size, dtype=np.bool_)
@@ -150,7 +149,7 @@ class BattleEngine:
         t = self.terrain
         args = (self.state, cmd.kind, cmd.target, cmd.x, cmd.y, self._slot_stats, t.walk, t.next_hop, t.los,
                 t.open_field, self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter,
-                self._by_x, self._sort_key, self._engaged, self._x0, self._y0, self._arrived)
+                self._by_x, self._sort_key, self._engaged, self._x0, self._y0)
         if self.batch_size >= PARALLEL_MIN_BATCH:
             step_batch(*args, numba.get_num_threads(), self._next_battle)
         else:

@@ -73,8 +73,8 @@ _SHIELD_DELAY = SHIELD_REGEN_DELAY_LOOPS
 _MIN_DAMAGE = MIN_DAMAGE
 _BIO = BIO
 _ARRIVE = 0.05  # a move order is complete this close to its point
-_CROWD_ARRIVE = 3.0  # ... or this close, touching a unit of its side that has arrived (SC2's group arrival)
-_TOUCH = 0.1  # two units touch when their edges are this close
+_CROWD_ARRIVE = 3.0  # ... or this close, bumping into a unit of its side that has arrived (SC2's group arrival)
+_ARRIVING = 99  # order of a unit that arrived during a separation pass (idle once the pass ends)
 _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the scan range
 _EDGE = 1e-4  # keeps positions strictly inside the map
 _INF = 1e300
@@ -156,9 +156,11 @@ def _apply_commands(side, alive, order, order_target, order_x, order_y, target, 
 
 
 @inline
-def _timers(alive, alive0, health, shield, energy, cooldown, shield_wait, slot_stats):
+def _timers(alive, alive0, target, engaged, health, shield, energy, cooldown, shield_wait, slot_stats):
+    """Start of a loop: the snapshots the loop's phases read (who is alive, who engages whom), then the timers."""
     for i in range(alive.shape[0]):
         alive0[i] = alive[i]
+        engaged[i] = target[i]
         if not alive[i]:
             continue
         if cooldown[i] > 0.0:
@@ -324,12 +326,9 @@ def _targeting(side, alive, x, y, health, order, order_target, target, engaged, 
       Without a target: the best enemy within scan range (weapon range on hold); a responder (not passive, idle: no
       order) then answers the last enemy that hit it, wherever it is.
 
-    "Attacking it" is read from ``engaged``, a snapshot of the targets taken here before anyone re-acquires.
+    "Attacking it" is read from ``engaged``, the targets when the loop began (``_timers`` takes the snapshot).
     """
-    n = alive.shape[0]
-    for i in range(n):
-        engaged[i] = target[i]
-    for i in range(n):
+    for i in range(alive.shape[0]):
         if not alive[i]:
             continue
         o = order[i]
@@ -402,54 +401,20 @@ def _slide(px, py, nx, ny, mover, walk):
 
 
 @inline
-def _touches_arrived(i, gx, gy, side, alive, x0, y0, order, slot_stats):
-    """Whether unit i touches a unit of its side, on its plane, that was idle when the phase began near i's goal."""
-    for j in range(alive.shape[0]):
-        if j == i or not alive[j] or side[j] != side[i] or order[j] != ORDER_IDLE:
-            continue
-        if slot_stats[j, _MOVER] != slot_stats[i, _MOVER]:
-            continue
-        if not _within(x0[j], y0[j], gx, gy, _CROWD_ARRIVE):
-            continue
-        if _within(x0[i], y0[i], x0[j], y0[j], slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS] + _TOUCH):
-            return True
-    return False
-
-
-@inline
-def _movement(side, alive, x, y, x0, y0, arrived, order, order_x, order_y, target, slot_stats, walk, next_hop, los,
-              open_field):
+def _movement(alive, x, y, x0, y0, order, order_x, order_y, target, slot_stats, walk, next_hop, los, open_field):
     """Every unit steps toward its target (unless in range) or its order point.
 
-    Simultaneous: whether a unit is in range, where its target stands and whether it has arrived are read from the
-    state when the phase began (``x0, y0`` positions, ``arrived`` scratch). Read live, the lower slots (red) would
-    move first and the higher slots would find the gap already closed, so red always advanced further than blue in a
-    mirrored fight.
-
-    Arrival: a move or attack-move is complete at its point, or (SC2's group arrival) once the unit is near the point
-    and touches a unit of its side that has already arrived there; a crowd sent to one point stops as a clump around
-    it instead of pushing forever, and every unit in it ends idle.
+    Simultaneous: whether a unit is in range and where its target stands are read from ``x0, y0``, the positions
+    when the phase began. Read live, the lower slots (red) would move first and the higher slots would find the gap
+    already closed, so red always advanced further than blue in a mirrored fight. (Group arrival, the other way a
+    move completes, is decided where units bump: in ``_separation``.)
     """
     n = alive.shape[0]
     for i in range(n):
         x0[i] = x[i]
         y0[i] = y[i]
     for i in range(n):
-        arrived[i] = False
-        o = order[i]
-        if not alive[i] or target[i] >= 0 or not (o == ORDER_MOVE or o == ORDER_ATTACK_MOVE):
-            continue
-        gx, gy = order_x[i], order_y[i]
-        dx, dy = gx - x0[i], gy - y0[i]
-        d2 = dx * dx + dy * dy
-        if d2 <= _ARRIVE * _ARRIVE or (d2 <= _CROWD_ARRIVE * _CROWD_ARRIVE and _touches_arrived(
-                i, gx, gy, side, alive, x0, y0, order, slot_stats)):
-            arrived[i] = True
-    for i in range(n):
         if not alive[i]:
-            continue
-        if arrived[i]:
-            order[i] = ORDER_IDLE
             continue
         speed = slot_stats[i, _SPEED]
         o = order[i]
@@ -463,6 +428,10 @@ def _movement(side, alive, x, y, x0, y0, arrived, order, order_x, order_y, targe
             gx, gy = x0[j], y0[j]
         elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
             gx, gy = order_x[i], order_y[i]
+            dx, dy = gx - x[i], gy - y[i]
+            if dx * dx + dy * dy <= _ARRIVE * _ARRIVE:
+                order[i] = ORDER_IDLE
+                continue
         else:
             continue
         mover = int(slot_stats[i, _MOVER])
@@ -505,18 +474,12 @@ def _sort_by_x(by_x, key, x):
 
 
 @inline
-def _push_apart(i, j, x, y, x0, y0, order, slot_stats):
-    """If alive units i and j of the same plane overlapped when the pass began (``x0, y0``), add their pushes apart to
-    ``x, y`` and return the depth (else 0).
+def _push_apart(i, j, dx, dy, d2, rr, push_x, push_y, order, slot_stats):
+    """Add the pushes that part overlapping units i and j (j - i = (dx, dy), d2 = dx^2 + dy^2 < rr^2) to
+    ``push_x, push_y``; return the depth of the overlap (0 when neither may move).
 
     Units on hold or rooted are not pushed; a movable unit takes the whole push from an unmovable one.
     """
-    rr = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
-    dx = x0[j] - x0[i]
-    dy = y0[j] - y0[i]
-    d2 = dx * dx + dy * dy
-    if d2 >= rr * rr or slot_stats[j, _MOVER] != slot_stats[i, _MOVER]:
-        return 0.0
     wi = 1.0 if slot_stats[i, _SPEED] > 0.0 and order[i] != ORDER_HOLD else 0.0
     wj = 1.0 if slot_stats[j, _SPEED] > 0.0 and order[j] != ORDER_HOLD else 0.0
     if wi + wj == 0.0:
@@ -532,33 +495,49 @@ def _push_apart(i, j, x, y, x0, y0, order, slot_stats):
     overlap = rr - d
     share_i = overlap * wi / (wi + wj)
     share_j = overlap - share_i
-    x[i] -= ux * share_i
-    y[i] -= uy * share_i
-    x[j] += ux * share_j
-    y[j] += uy * share_j
+    push_x[i] -= ux * share_i
+    push_y[i] -= uy * share_i
+    push_x[j] += ux * share_j
+    push_y[j] += uy * share_j
     return overlap
 
 
 @inline
-def _separation(alive, x, y, x0, y0, order, slot_stats, walk, by_x, key, max_radius):
+def _bump(mover, other, order, order_x, order_y, target, x, y):
+    """Whether ``mover``, walking on a move or attack-move with no target, has bumped into ``other``, a unit of its
+    side that was idle when the pass began, within 3 of its point: SC2's group arrival, its order is then complete."""
+    o = order[mover]
+    if order[other] != ORDER_IDLE or target[mover] >= 0 or not (o == ORDER_MOVE or o == ORDER_ATTACK_MOVE):
+        return False
+    return _within(x[mover], y[mover], order_x[mover], order_y[mover], _CROWD_ARRIVE)
+
+
+@inline
+def _separation(side, alive, x, y, push_x, push_y, order, order_x, order_y, target, slot_stats, walk, by_x, key,
+                max_radius):
     """One pass of pushes over every pair that overlaps when the pass begins; returns the deepest overlap pushed
     (0: nothing moved).
 
-    Simultaneous (Jacobi): every push is computed from the positions when the pass began (``x0, y0``, scratch) and the
-    pushes a unit receives add up; then each unit slides from where it was toward its pushed position, stopping at
-    walls. Pushes applied one pair after another (Gauss-Seidel) favour the units met first, and in a mirrored fight
-    that decided battles: blue lost 2s3z 64-0 to red with the same script on both sides.
+    Simultaneous (Jacobi): every push is computed from the positions when the pass began and the pushes a unit
+    receives add up (in ``push_x, push_y``, scratch, zeroed once the first overlap is found); then each pushed unit
+    slides from where it was toward its pushed position, stopping at walls. Pushes applied one pair after another
+    (Gauss-Seidel) favour the units met first, and in a mirrored fight that decided battles: blue lost 2s3z 64-0 to
+    red with the same script on both sides.
 
     Sweep and prune: with the units sorted by x, unit i's partners lie within ``radius_i + max_radius`` further
     along the sorted list, so the pass stops looking at the first unit beyond that (27 marines against 30: about 4
     pairs per unit instead of 28).
+
+    Group arrival happens here, where units bump: a unit walking to a point that bumps into a unit of its side
+    already idle within 3 of that point stops there, idle (SC2: a crowd sent to one point stops as a clump around it
+    instead of pushing toward it for ever). Units that arrive in a pass are marked ``_ARRIVING`` and become idle
+    when it ends, so no one arrives by bumping into a unit that only arrived in the same pass.
     """
     _sort_by_x(by_x, key, x)
     n = by_x.shape[0]
-    for i in range(n):
-        x0[i] = x[i]
-        y0[i] = y[i]
     worst = 0.0
+    pushed = False
+    arriving = False
     for a in range(n):
         i = by_x[a]
         if not alive[i]:
@@ -568,12 +547,35 @@ def _separation(alive, x, y, x0, y0, order, slot_stats, walk, by_x, key, max_rad
             if key[c] - key[a] >= window:
                 break
             j = by_x[c]
-            if alive[j]:
-                worst = max(worst, _push_apart(i, j, x, y, x0, y0, order, slot_stats))
-    if worst > 0.0:
+            if not alive[j] or slot_stats[j, _MOVER] != slot_stats[i, _MOVER]:
+                continue
+            rr = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
+            dx = x[j] - x[i]
+            dy = y[j] - y[i]
+            d2 = dx * dx + dy * dy
+            if d2 >= rr * rr:
+                continue
+            if not pushed:
+                for k in range(n):
+                    push_x[k] = 0.0
+                    push_y[k] = 0.0
+                pushed = True
+            worst = max(worst, _push_apart(i, j, dx, dy, d2, rr, push_x, push_y, order, slot_stats))
+            if side[i] == side[j]:
+                if _bump(i, j, order, order_x, order_y, target, x, y):
+                    order[i] = _ARRIVING
+                    arriving = True
+                elif _bump(j, i, order, order_x, order_y, target, x, y):
+                    order[j] = _ARRIVING
+                    arriving = True
+    if arriving:
         for i in range(n):
-            if x[i] != x0[i] or y[i] != y0[i]:
-                x[i], y[i] = _slide(x0[i], y0[i], x[i], y[i], int(slot_stats[i, _MOVER]), walk)
+            if order[i] == _ARRIVING:
+                order[i] = ORDER_IDLE
+    if pushed:
+        for i in range(n):
+            if push_x[i] != 0.0 or push_y[i] != 0.0:
+                x[i], y[i] = _slide(x[i], y[i], x[i] + push_x[i], y[i] + push_y[i], int(slot_stats[i, _MOVER]), walk)
     return worst
 
 
@@ -732,15 +734,15 @@ def _deaths(alive, health, shield, order, target):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, jitter,
-                by_x, key, engaged, x0, y0, arrived):
+                by_x, key, engaged, x0, y0):
     """Apply battle b's commands, then run ``n_loops`` game loops on it.
 
     ``slot_stats`` (U, columns) is the unit table row of each slot. ``jitter`` = (low, high): each attack's cooldown
     gets a uniform random delay in [low, high) loops; (0, 0) for none. ``by_x`` (B, U) int32 holds each battle's
     slots ordered by x (any permutation will do; kept between steps because it is then nearly sorted) and ``key``
-    (B, U) float64 is scratch for the sort; ``engaged`` (B, U) int32, ``x0``, ``y0`` (B, U) float64 and ``arrived``
-    (B, U) bool are scratch for targeting's and movement's snapshots (simultaneous decisions, independent of slot
-    order).
+    (B, U) float64 is scratch for the sort; ``engaged`` (B, U) int32 and ``x0``, ``y0`` (B, U) float64 are scratch for
+    targeting's and movement's snapshots (simultaneous decisions, independent of slot order) and separation's push
+    accumulators.
     """
     rng = st.rng[b:b + 1]
     jitter_lo, jitter_hi = jitter[0], jitter[1]
@@ -750,7 +752,6 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
     order, order_target, order_x, order_y = st.order[b], st.order_target[b], st.order_x[b], st.order_y[b]
     target, attacker, fired_at, burst = st.target[b], st.attacker[b], st.fired_at[b], st.burst[b]
     order_by_x, sort_key, engaged_at_loop, x_at_loop, y_at_loop = by_x[b], key[b], engaged[b], x0[b], y0[b]
-    arrived_now = arrived[b]
     max_radius = 0.0
     for i in range(slot_stats.shape[0]):
         max_radius = max(max_radius, slot_stats[i, _RADIUS])
@@ -758,12 +759,13 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
     _apply_commands(side, alive, order, order_target, order_x, order_y, target, fired_at, burst,
                     kind[b], cmd_target[b], cmd_x[b], cmd_y[b], slot_stats)
     for _ in range(n_loops):
-        _timers(alive, alive0, health, shield, energy, cooldown, shield_wait, slot_stats)
+        _timers(alive, alive0, target, engaged_at_loop, health, shield, energy, cooldown, shield_wait, slot_stats)
         _targeting(side, alive, x, y, health, order, order_target, target, engaged_at_loop, attacker, slot_stats)
-        _movement(side, alive, x, y, x_at_loop, y_at_loop, arrived_now, order, order_x, order_y, target, slot_stats,
-                  walk, next_hop, los, open_field)
-        worst = _separation(alive, x, y, x_at_loop, y_at_loop, order, slot_stats, walk, order_by_x, sort_key,
-                            max_radius)
+        _movement(alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats, walk, next_hop, los,
+                  open_field)
+        # Separation reuses movement's snapshot arrays as its push accumulators (movement is done with them).
+        worst = _separation(side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats, walk,
+                            order_by_x, sort_key, max_radius)
         _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
                  fired_at, burst, slot_stats, rng, jitter_lo, jitter_hi)
         _deaths(alive, health, shield, order, target)
@@ -771,15 +773,15 @@ def step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_ho
     # the last pass pushed nothing, nothing has moved since, and a settling pass would push nothing either.
     if worst > 0.0:
         for _ in range(_SETTLE_PASSES):
-            if _separation(alive, x, y, x_at_loop, y_at_loop, order, slot_stats, walk, order_by_x, sort_key,
-                           max_radius) < _SETTLED:
+            if _separation(side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats, walk,
+                           order_by_x, sort_key, max_radius) < _SETTLED:
                 break
     st.loop[b] += n_loops
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, active,
-               jitter, by_x, key, engaged, x0, y0, arrived, workers, next_battle):
+               jitter, by_x, key, engaged, x0, y0, workers, next_battle):
     """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``.
 
     One prange iteration per worker thread (``workers``: numba's thread count); each takes chunks of battles from
@@ -796,14 +798,14 @@ def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, l
             for b in range(start, min(start + chunk, n_battles)):
                 if active[b]:
                     step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                                n_loops, jitter, by_x, key, engaged, x0, y0, arrived)
+                                n_loops, jitter, by_x, key, engaged, x0, y0)
 
 
 @njit(cache=True, error_model="numpy")
 def step_batch_serial(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                      active, jitter, by_x, key, engaged, x0, y0, arrived):
+                      active, jitter, by_x, key, engaged, x0, y0):
     """``step_batch`` on the calling thread: small batches would pay more to wake the thread pool than they gain."""
     for b in range(st.alive.shape[0]):
         if active[b]:
             step_battle(b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                        jitter, by_x, key, engaged, x0, y0, arrived)
+                        jitter, by_x, key, engaged, x0, y0)
