@@ -50,10 +50,15 @@ class _MMMScript(BatchScript):
         near = np.where(frame.enemy_alive[:, None, :], frame.dist, np.inf).min(axis=2)
         return marauder & (near <= CONTACT)
 
-    def _advance(self, frame: Frame, orders: Orders, advancing: np.ndarray) -> None:
-        """Every unit, medivacs included, moves 1 west (blue's frame)."""
-        units = frame.own_alive & advancing[:, None]
-        orders.move(units, *from_blue_frame(frame, frame.own_hx - 1.0, frame.own_hy))
+    def _advance_or_fight(self, frame: Frame, orders: Orders, formed: np.ndarray, blind: np.ndarray) -> np.ndarray:
+        """Rows past forming up advance 1 west (blue's frame, medivacs included) while ``blind`` and never engaged;
+        the others fight, and stay engaged. Returns the fighting rows."""
+        advancing = formed & blind & ~self.memory.engaged[frame.rows]
+        orders.move(frame.own_alive & advancing[:, None],
+                    *from_blue_frame(frame, frame.own_hx - 1.0, frame.own_hy))
+        fight = formed & ~advancing
+        self.memory.engaged[frame.rows] |= fight
+        return fight
 
     def _front(self, frame: Frame, orders: Orders, marine: np.ndarray, marauder: np.ndarray, fight: np.ndarray,
                target: np.ndarray) -> None:
@@ -110,7 +115,7 @@ class MMMFormation(_MMMScript):
                    "(SMAC-HARD s_MMM/script)")
 
     def plan(self, frame: Frame, orders: Orders) -> None:
-        rows, alive = frame.rows, frame.own_alive
+        alive = frame.own_alive
         marine, marauder, medivac = self._kinds(frame)
         live = (marine | marauder).any(axis=1) & frame.enemy_alive.any(axis=1)
         forming = live & (frame.step < FORM_STEPS)
@@ -121,10 +126,7 @@ class MMMFormation(_MMMScript):
             orders.move(alive & forming[:, None], *from_blue_frame(frame, cx[:, None] + offset, frame.own_hy))
 
         blind = (marauder & ~self._sees(frame, marauder)).any(axis=1)  # some marauder sees no enemy
-        advancing = live & ~forming & blind & ~self.memory.engaged[rows]
-        self._advance(frame, orders, advancing)
-        fight = live & ~forming & ~advancing
-        self.memory.engaged[rows] |= fight
+        fight = self._advance_or_fight(frame, orders, live & ~forming, blind)
         if not fight.any():
             return
 
@@ -167,7 +169,6 @@ class MarauderFront(_MMMScript):
                    "s_MMM/script_2)")
 
     def plan(self, frame: Frame, orders: Orders) -> None:
-        rows = frame.rows
         marine, marauder, medivac = self._kinds(frame)
         live = (marine | marauder).any(axis=1) & frame.enemy_alive.any(axis=1)
         forming = live & (frame.step < FORM_STEPS)
@@ -184,10 +185,7 @@ class MarauderFront(_MMMScript):
             orders.move(medivac & forming[:, None], *from_blue_frame(frame, cx[:, None] + 1.0, hy))
 
         all_blind = ~self._sees(frame, marauder).any(axis=1)
-        advancing = live & ~forming & all_blind & ~self.memory.engaged[rows]
-        self._advance(frame, orders, advancing)
-        fight = live & ~forming & ~advancing
-        self.memory.engaged[rows] |= fight
+        fight = self._advance_or_fight(frame, orders, live & ~forming, all_blind)
         if not fight.any():
             return
 
