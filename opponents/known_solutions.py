@@ -5,16 +5,16 @@ They are the engine's and the opponents' acceptance tests: the outcome of each p
 from our code, so a bound that fails points at a rule of the engine or a script that does not behave as in
 StarCraft II. ``smac-hard-gym solutions`` prints the table; ``tests/test_known_solutions.py`` asserts it.
 
-- 2m_vs_1z, **alternating aggro** (SMAC's classic solution): the marine the zealot chases runs, the other shoots.
-  SC2's zealot turns on whoever is shooting it, so it is pulled back and forth and never lands a blow (beats
-  ``smac``). SMAC-HARD's focus-fire zealot (``weakest``: an explicit attack order) never switches: the runner is
-  cornered (SMAC-HARD paper, section 6.1). The **kiting** variant, where the chased marine shoots whenever its
-  weapon is ready and steps back otherwise, beats the focus-fire zealot too.
+- 2m_vs_1z, **alternating aggro** (SMAC's classic solution): the marine the zealot comes close to steps back, the
+  other shoots. SC2's zealot turns on whoever is shooting it, so it is pulled back and forth and never lands a blow
+  (beats ``smac``). SMAC-HARD's focus-fire zealot (``weakest``: an explicit attack order) never switches: the
+  runner is cornered (SMAC-HARD paper, section 6.1). In the **kiting** variant the chased marine keeps running, in a
+  circle round its partner, which stands and shoots: that beats the focus-fire zealot too.
 - 3s_vs_3z / 3s_vs_4z, **stalker kiting** (the paper's section 6.2): attack when the weapon is ready, step back
   from the nearest zealot otherwise; stalkers are faster than zealots, so the zealots rarely land a blow. The same
   stalkers **standing** their ground lose the melee.
-- corridor, **holding the choke**: the zealots walk to the corridor's neck and hold it, so the zerglings arrive a
-  few at a time; fighting in the open lets 24 zerglings surround 6 zealots.
+- corridor, **holding the choke**: the zealots go through the corridor's neck and hold its exit, so the zerglings
+  arrive one at a time; fighting in the open lets 24 zerglings surround 6 zealots.
 - 3s5z_vs_3s6z, **hide, then pick off** (the paper's section 3.1 and its figure 1): the army hides in a corner away
   from the enemy's attack-move path; SMAC's opponent arrives at its point and idles there, so one stalker can pull
   single enemies out of the group (an idle unit turns on whoever shoots it) into the waiting army. SMAC-HARD's
@@ -88,13 +88,16 @@ def _focus(frame: Frame) -> np.ndarray:
 class AlternatingAggro(BatchScript):
     """2m_vs_1z: the marine the zealot is engaging gets away while the other shoots.
 
-    ``kite=False`` (alternating aggro): the chased marine steps straight away from the zealot. ``kite=True``: the
-    chased marine runs a circle of radius 4 around its partner, which stands and shoots; marines are as fast as the
-    zealot, so it never catches the runner and never leaves the shooter's range.
+    ``kite=False`` (alternating aggro): both shoot; the chased marine steps 2 straight away once the zealot is within
+    ``flee_distance``, and shoots again when it is not chased (stepping away earlier would drag the equally fast
+    zealot out of its partner's range). ``kite=True``: the chased marine keeps running a circle of radius
+    ``circle_radius`` round its partner, which stands and shoots; the zealot never catches the runner and never
+    leaves the shooter's range.
     """
 
     circle_radius = 5.5
     flee_distance = 2.5
+    lead_angle = 0.3  # radians ahead on the circle: 1.65 at radius 5.5, a little more than one step's walk
 
     def __init__(self, kite: bool = False) -> None:
         self.kite = kite
@@ -104,36 +107,31 @@ class AlternatingAggro(BatchScript):
 
     def plan(self, frame: Frame, orders: Orders) -> None:
         alive = frame.own_alive
-        target = _focus(frame)
         chased = _chased(frame)
-        orders.attack(alive & ~chased, target)
+        runner = alive & chased
+        orders.attack(alive & ~chased, _focus(frame))
+        if not self.kite:
+            close = ((frame.edge <= self.flee_distance) & frame.enemy_alive[:, None, :]).any(axis=2)
+            _step_back(frame, orders, runner & close, 2.0)
+            return
         # The partner: the nearest other living own unit.
         dx = frame.own_x[:, None, :] - frame.own_x[:, :, None]
         dy = frame.own_y[:, None, :] - frame.own_y[:, :, None]
         others = alive[:, None, :] & ~np.eye(frame.n_own, dtype=bool)[None]
         partner = argmin_masked(np.hypot(dx, dy), others, axis=2)
-        has_partner = partner >= 0
         safe = np.maximum(partner, 0)
         px = np.take_along_axis(frame.own_x, safe, axis=1)
         py = np.take_along_axis(frame.own_y, safe, axis=1)
         near = np.maximum(nearest(frame.dist, frame.enemy_alive[:, None, :]), 0)
         zx = np.take_along_axis(frame.enemy_x, near, axis=1)
         zy = np.take_along_axis(frame.enemy_y, near, axis=1)
-        runner = alive & chased
-        if not self.kite:
-            # Keep shooting until the zealot is close, so both marines stay in range and the one shooting draws it.
-            close = ((frame.edge <= self.flee_distance) & frame.enemy_alive[:, None, :]).any(axis=2)
-            _step_back(frame, orders, runner & close, 2.0)
-            return
-        # Step along the circle around the partner, turning the way that leads away from the nearest enemy.
+        # Step along the circle round the partner, turning the way that leads away from the nearest enemy.
         angle = np.arctan2(frame.own_y - py, frame.own_x - px)
         away = np.sign((frame.own_x - zx) * -np.sin(angle) + (frame.own_y - zy) * np.cos(angle))
-        away = np.where(away == 0, 1.0, away)
-        ahead = angle + away * 0.3  # about 2.4 along a circle of radius 4: more than one step's walk
-        cx = px + self.circle_radius * np.cos(ahead)
-        cy = py + self.circle_radius * np.sin(ahead)
-        orders.move(runner & has_partner, cx, cy)
-        _step_back(frame, orders, runner & ~has_partner, 2.0)
+        ahead = angle + np.where(away == 0, 1.0, away) * self.lead_angle
+        orders.move(runner & (partner >= 0), px + self.circle_radius * np.cos(ahead),
+                    py + self.circle_radius * np.sin(ahead))
+        _step_back(frame, orders, runner & (partner < 0), 2.0)
 
 
 class StalkerKite(BatchScript):
