@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 COMMANDS: dict[str, str] = {
@@ -21,6 +22,12 @@ COMMANDS: dict[str, str] = {
     "train": "smac_hard_gym.commands.train",
     "eval": "smac_hard_gym.commands.eval",
 }
+
+
+def _user_errors() -> tuple[type[BaseException], ...]:
+    from smac_hard_gym.opponents.api import ScriptError
+
+    return (ValueError, TypeError, FileNotFoundError, ImportError, ScriptError)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -39,7 +46,17 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     module = importlib.import_module(COMMANDS[args.command])
-    return int(module.run(args) or 0)
+    USER_ERRORS = _user_errors()  # noqa: N806  (a tuple of classes for the except clause below)
+    try:
+        return int(module.run(args) or 0)
+    except KeyboardInterrupt:
+        print(f"\nsmac-hard-gym {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except USER_ERRORS as err:  # bad input: one line naming it, no traceback (SMAC_HARD_GYM_TRACEBACK=1 shows it)
+        if os.environ.get("SMAC_HARD_GYM_TRACEBACK"):
+            raise
+        print(f"smac-hard-gym {args.command}: error: {err}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

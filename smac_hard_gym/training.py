@@ -60,6 +60,7 @@ class TrainConfig:
     torch_threads: int = 1
     env_threads: int = 1  # numba threads for the engine batch
     progress: bool = True
+    tensorboard: str = ""  # a directory for SB3's TensorBoard logs ("" for none; needs the tensorboard package)
 
     def __post_init__(self) -> None:
         for name in ("timesteps", "num_envs", "eval_episodes", "eval_envs", "n_steps", "batch_size", "n_epochs",
@@ -73,6 +74,12 @@ class TrainConfig:
             raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
         if not self.out:
             self.out = str(Path("runs") / f"{self.map_name}-{self.opponent.replace(',', '+')}-s{self.seed}")
+        if self.tensorboard:
+            try:
+                import tensorboard  # noqa: F401  (SB3 writes through it)
+            except ImportError:
+                raise ValueError(f"tensorboard={self.tensorboard!r} needs the tensorboard package: "
+                                 "pip install tensorboard") from None
 
     @property
     def eval_interval(self) -> int:
@@ -312,7 +319,7 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
         policy, venv, n_steps=config.n_steps, batch_size=config.batch_size, n_epochs=config.n_epochs,
         learning_rate=config.learning_rate, gamma=config.gamma, gae_lambda=config.gae_lambda,
         clip_range=config.clip_range, ent_coef=config.ent_coef, seed=config.seed, device="cpu", verbose=0,
-        policy_kwargs={"net_arch": [int(n) for n in config.net_arch]})
+        policy_kwargs={"net_arch": [int(n) for n in config.net_arch]}, tensorboard_log=config.tensorboard or None)
 
     rows: list[dict[str, Any]] = []
     clock = {"start": time.perf_counter(), "eval": 0.0}
@@ -337,16 +344,21 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
     clock["start"] = time.perf_counter()
     clock["eval"] = 0.0
     timed.env_seconds = 0.0
+    interrupted = False
     try:
         model.learn(config.timesteps, callback=callback)
         if rows[-1]["timesteps"] != model.num_timesteps:
             evaluate_now(model.num_timesteps, callback.take_train_results())
+    except KeyboardInterrupt:  # Ctrl-C: keep what was learned, the curve so far and a summary that says so
+        interrupted = True
     finally:
         venv.close()
         eval_env.close()
     model.save(out / "model.zip")
     plotted = _plot_curve(out / "curve.png", rows, f"MaskablePPO on {config.map_name} vs {config.opponent}")
     summary = _summary(config, rows)
+    summary["interrupted"] = interrupted
+    summary["timesteps_trained"] = int(model.num_timesteps)
     summary["files"] = {"model": str(out / "model.zip"), "curve_csv": str(out / "curve.csv"),
                         "curve_png": str(out / "curve.png") if plotted else None,
                         "config": str(out / "config.json")}

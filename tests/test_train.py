@@ -94,6 +94,54 @@ def test_cli_rejects_bad_input():
         main(["eval", "--model", "/nonexistent/model.zip"])
 
 
+_SMALL_RUN = ["--map", "3m", "--timesteps", "2048", "--num-envs", "4", "--n-steps", "64", "--batch-size", "128",
+              "--epochs", "1", "--eval-every", "2048", "--eval-episodes", "2", "--no-progress"]
+
+
+def test_ctrl_c_during_training_keeps_model_curve_and_summary(tmp_path, capsys, monkeypatch):
+    def interrupted_learn(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(MaskablePPO, "learn", interrupted_learn)
+    out = tmp_path / "run"
+    assert main(["train", *_SMALL_RUN, "--out", str(out)]) == 130
+    assert "interrupted after 0 steps: model, curve and summary saved in" in capsys.readouterr().out
+    for name in ("model.zip", "curve.csv", "summary.json"):
+        assert (out / name).is_file(), name
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+
+
+def test_eval_names_the_map_a_model_was_trained_on(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", *_SMALL_RUN, "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["eval", "--model", str(out / "model.zip"), "--map", "8m", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "trained on 3m" in err and "8m needs" in err
+
+
+def test_commands_print_one_line_errors_and_take_comma_lists(capsys):
+    assert main(["duel", "--map", "3m", "--red", "base", "--blue", "missing_script.py", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().count("\n") == 0 and "missing_script.py" in err and "Traceback" not in err
+    assert main(["duel", "--map", "3m", "--red", "base", "--blue", "line_front,nearest", "--episodes", "2",
+                 "--no-progress"]) == 0
+    assert "base vs line_front" in capsys.readouterr().out
+
+
+def test_tensorboard_logging(tmp_path):
+    board = tmp_path / "tb"
+    args = ["train", *_SMALL_RUN, "--out", str(tmp_path / "run"), "--tensorboard", str(board)]
+    try:
+        import tensorboard  # noqa: F401
+    except ImportError:  # not in any extra: the option says what to install
+        with pytest.raises(SystemExit, match="pip install tensorboard"):
+            main(args)
+        return
+    assert main(args) == 0
+    assert list(board.rglob("events.out.tfevents.*"))
+
+
 def test_maskable_ppo_learns_on_the_subprocess_env():
     sub = make_subproc_env("3m", 2, 2, autoreset_mode="SameStep", opponent="default")
     try:

@@ -10,8 +10,9 @@ HELP = "pit two opponent scripts against each other on a map and print win/draw 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", required=True, help="map name (see `smac-hard-gym maps`)")
     parser.add_argument("--red", required=True,
-                        help="script for the red (learner's) side: a name, default, blackbox, file.py[:Class] or "
-                             "module:Name; red units are SMAC's passive *_RL units, so it must give orders")
+                        help="script for the red (learner's) side: a name, names joined by commas (a mixture), "
+                             "default, blackbox, file.py[:Class] or module:Name; red units are SMAC's passive *_RL "
+                             "units, so it must give orders")
     parser.add_argument("--blue", required=True, help="script for the blue (opponent's) side, same forms")
     parser.add_argument("--episodes", type=int, default=20, help="episodes to play (default 20)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the scripts' per-episode generators")
@@ -35,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     batch = args.batch if args.batch is not None else min(args.episodes, 64)
     print(f"duel on {args.map}: red={args.red} blue={args.blue} episodes={args.episodes} seed={args.seed} "
           f"batch={batch}")
-    result = run_duel(args.map, args.red, args.blue, episodes=args.episodes, seed=args.seed, batch_size=args.batch,
+    red, blue = (name.split(",") if "," in name else name for name in (args.red, args.blue))  # lists as in train
+    result = run_duel(args.map, red, blue, episodes=args.episodes, seed=args.seed, batch_size=args.batch,
                       red_probs=args.red_probs, blue_probs=args.blue_probs, progress=not args.no_progress)
     print(f"red wins   {result.red_win_rate:7.1%}  ({result.red_wins})")
     print(f"blue wins  {result.blue_win_rate:7.1%}  ({result.blue_wins})")

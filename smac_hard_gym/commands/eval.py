@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 HELP = "evaluate a trained model's win rate per opponent script and for the mixture"
 
@@ -47,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
 
     torch.set_num_threads(1)
     model = MaskablePPO.load(model_path, device="cpu")
+    _check_fits(model, map_name, env_kwargs, run_config.map_name if run_config else None)
     print(f"model {model_path} on {map_name}: {len(names)} script(s) x {args.episodes} episodes, seed {args.seed}")
     results = evaluate_scripts(model, map_name, args.opponent, args.episodes, num_envs=args.num_envs,
                                seed=args.seed, env_kwargs=env_kwargs, log=print)
@@ -62,3 +64,19 @@ def run(args: argparse.Namespace) -> int:
     out.write_text(json.dumps(results, indent=2) + "\n")
     print(f"\nwrote {out}")
     return 0
+
+
+def _check_fits(model: Any, map_name: str, env_kwargs: dict, trained_on: str | None) -> None:
+    """Fail with one line when the model's observation or action space is not the map's (a 3m model on 8m)."""
+    from smac_hard_gym.gym_env import SMACHardEnv
+
+    env = SMACHardEnv(map_name, **{k: v for k, v in env_kwargs.items() if k != "map_name"})
+    try:
+        fits = (model.observation_space == env.observation_space and model.action_space == env.action_space)
+        if not fits:
+            where = f"trained on {trained_on}" if trained_on else "trained on another map"
+            raise ValueError(f"the model was {where} (action space {model.action_space}); {map_name} needs "
+                             f"{env.action_space}: evaluate it on {trained_on or 'its own map'}, or train one on "
+                             f"{map_name}")
+    finally:
+        env.close()

@@ -36,6 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--torch-threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--env-threads", type=int, default=1, help="engine (numba) threads (default 1)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--tensorboard", default="", metavar="DIR",
+                        help="also log to TensorBoard in DIR (needs the tensorboard package)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -56,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
             seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
             obs_mode=args.obs_mode, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.epochs,
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, net_arch=net_arch,
-            torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress)
+            torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
+            tensorboard=args.tensorboard)
         from smac_hard_gym.opponents import make_opponent
 
         make_opponent(args.map, args.opponent.split(",") if "," in args.opponent else args.opponent)
@@ -66,7 +69,15 @@ def run(args: argparse.Namespace) -> int:
     for key, value in asdict(config).items():
         print(f"  {key:<15} {value}")
     print(f"  {'eval_interval':<15} {config.eval_interval}")
+    from smac_hard_gym.kernel_cache import COMPILING_NOTICE, kernels_cached
+
+    if not kernels_cached():
+        print(COMPILING_NOTICE, flush=True)
     summary = train(config)
+    if summary["interrupted"]:
+        print(f"\ninterrupted after {summary['timesteps_trained']} steps: model, curve and summary saved in "
+              f"{config.out}")
+        return 130
     print()
     print(f"win rate (masked, deterministic, {summary['eval_episodes']} episodes) after {summary['timesteps']} "
           f"steps: {summary['final_win_rate']:.3f} (best {summary['best_win_rate']:.3f})")

@@ -1,0 +1,26 @@
+"""Whether numba's on-disk cache already holds the engine's kernels, so commands can say when a run compiles them.
+
+The first run on a machine (or after the kernels' source changed) compiles them, which takes tens of seconds with no
+output of its own; later runs load them from ``__pycache__`` in about a second.
+"""
+
+from __future__ import annotations
+
+__all__ = ["kernels_cached", "COMPILING_NOTICE"]
+
+COMPILING_NOTICE = ("compiling the engine's kernels (first run only: numba caches them on disk, later runs start in "
+                    "seconds) ...")
+
+
+def kernels_cached() -> bool | None:
+    """True when the cache holds the main engine and feature kernels for their current source, False when a run will
+    compile them, None when it cannot tell (numba's cache internals moved)."""
+    try:
+        from smac_hard_gym import feature_kernels
+        from smac_hard_gym.engine import kernels
+
+        dispatchers = (kernels.step_batch_serial, kernels.step_batch, feature_kernels.encode_batch)
+        # numba's index of cached overloads; empty when missing or written for another version of the source
+        return all(bool(d._cache._cache_file._load_index()) for d in dispatchers)
+    except Exception:  # an internal numba API: never let it break a command
+        return None
