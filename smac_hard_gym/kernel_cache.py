@@ -13,14 +13,18 @@ COMPILING_NOTICE = ("compiling the engine's kernels (first run only: numba cache
 
 
 def kernels_cached() -> bool | None:
-    """True when the cache holds the main engine and feature kernels for their current source, False when a run will
-    compile them, None when it cannot tell (numba's cache internals moved)."""
+    """True when the cache holds the engine's step kernel (the serial or the parallel one: which runs depends on the
+    batch size) and the feature kernels every env uses, for their current source; False when a run will compile
+    them; None when it cannot tell (numba's cache internals moved)."""
     try:
         from smac_hard_gym import feature_kernels
         from smac_hard_gym.engine import kernels
 
-        dispatchers = (kernels.step_batch_serial, kernels.step_batch, feature_kernels.encode_batch)
-        # numba's index of cached overloads; empty when missing or written for another version of the source
-        return all(bool(d._cache._cache_file._load_index()) for d in dispatchers)
+        def cached(dispatcher) -> bool:
+            # numba's index of cached overloads: empty when missing or written for another version of the source
+            return bool(dispatcher._cache._cache_file._load_index())
+
+        engine = cached(kernels.step_batch) or cached(kernels.step_batch_serial)
+        return engine and cached(feature_kernels.available_actions_batch) and cached(feature_kernels.finish_step)
     except Exception:  # an internal numba API: never let it break a command
         return None

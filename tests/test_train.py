@@ -151,3 +151,13 @@ def test_maskable_ppo_learns_on_the_subprocess_env():
         assert model.num_timesteps == 2048 and len(model.ep_info_buffer) > 0
     finally:
         sub.close()
+
+
+def test_kernel_cache_is_warm_once_an_env_has_stepped():
+    from smac_hard_gym.kernel_cache import kernels_cached
+
+    env = NativeVectorEnv("3m", 16, autoreset_mode="SameStep")  # 16 battles: the parallel step kernel
+    env.reset(seed=0)
+    env.step(np.ones((16, 3), dtype=np.int64))
+    env.close()
+    assert kernels_cached() is True  # compiled (or loaded) in this process, so on disk now
