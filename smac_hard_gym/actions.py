@@ -14,11 +14,22 @@ id    meaning                               available when
 
 A move goes to ``(x, y +- move_amount)`` or ``(x +- move_amount, y)``; every command replaces the current order.
 The probe cell is ``(int(x), int(y + move_amount / 2))`` and so on, with Python's ``int`` truncation toward zero.
+
+Every API (``StarCraft2Env``, the gymnasium env, the vector envs, self-play) checks actions with
+:func:`validate_actions`: an action is an integer (a Python or NumPy int, or a float with an integral value such as
+``3.0``, since some libraries hand over float arrays); bools, strings, complex numbers, ``None``, nested sequences
+and fractional floats raise ``TypeError``; a wrong shape, a value out of ``0..n_actions-1`` (``-1``, ``inf``,
+``nan``, ``1e19``, ``2**70``) or an unavailable action raises :class:`InvalidActionError` (a ``ValueError``). The
+messages name the value as it was passed. A rejected step changes nothing.
 """
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
+from gymnasium.error import ResetNeeded
 
 from smac_hard_gym.engine.state import BattleState, Commands
 from smac_hard_gym.feature_kernels import (
@@ -29,14 +40,113 @@ from smac_hard_gym.feature_kernels import (
 )
 from smac_hard_gym.features import SIDE_NAMES, SideFeatures
 
-__all__ = ["InvalidActionError", "available_actions", "check_actions", "decode_actions", "action_name"]
+__all__ = ["InvalidActionError", "ResetNeededError", "available_actions", "check_actions", "validate_actions",
+           "decode_actions", "action_name"]
 
 ACTION_NOOP, ACTION_STOP = 0, 1
 _MOVE_WORDS = ("move north", "move south", "move east", "move west")
 
 
 class InvalidActionError(ValueError):
-    """An agent chose an action that is out of range or not available (the message names agent and action)."""
+    """Actions of the wrong shape, out of range or not available (the message names agent and action)."""
+
+
+class ResetNeededError(ResetNeeded, RuntimeError):
+    """``step()`` before the first ``reset()`` or after the episode ended, from any env API: gymnasium's
+    ``ResetNeeded`` (what its order-enforcing wrapper raises) and a ``RuntimeError``."""
+
+
+def validate_actions(actions: Any, shape: tuple[int, ...], n_actions: int, who: str = "red") -> np.ndarray:
+    """``actions`` as a fresh int64 array of ``shape`` ((n_agents,) or (battles, n_agents)), in ``0..n_actions-1``.
+
+    Accepts Python and NumPy integers and floats with an integral value. Raises ``TypeError`` for anything else
+    (bool, str, complex, None, nested sequences, fractional floats) and :class:`InvalidActionError` for a wrong
+    shape or a value out of range (``nan``, ``inf`` and ints beyond int64 included); ``who`` ("red", "blue")
+    starts the agent's name in the message. Availability is :func:`check_actions`'s job.
+    """
+    if isinstance(actions, (str, bytes, dict, set)) or actions is None:
+        raise TypeError(f"{who} actions must be a sequence or array of ints of shape {shape}, got {actions!r}")
+    if isinstance(actions, np.ndarray) and actions.dtype.kind in "iuf":
+        arr = actions
+    else:
+        try:
+            arr = np.asarray(actions, dtype=object)
+        except (ValueError, TypeError):  # ragged nesting numpy cannot lay out
+            raise InvalidActionError(f"{who} actions must have shape {shape}, got {actions!r}") from None
+    if arr.shape != tuple(shape):
+        raise InvalidActionError(f"{who} actions must have shape {tuple(shape)} ({_axes(shape)}), got {arr.shape}")
+    kind = arr.dtype.kind
+    if kind in "iu":
+        out_of_range = (arr < 0) | (arr >= n_actions)
+    elif kind == "f":
+        finite = np.isfinite(arr)
+        fraction = finite & (arr != np.floor(np.where(finite, arr, 0)))
+        if fraction.any():
+            _raise_type(arr, fraction, shape, n_actions, who)
+        out_of_range = ~finite | (arr < 0) | (arr >= n_actions)
+    else:
+        return _validate_objects(arr, shape, n_actions, who)
+    if out_of_range.any():
+        _raise_range(arr, out_of_range, shape, n_actions, who)
+    return arr.astype(np.int64)
+
+
+def _validate_objects(arr: np.ndarray, shape: tuple[int, ...], n_actions: int, who: str) -> np.ndarray:
+    """The element-wise path for lists and object arrays: each element's type decides."""
+    flat = arr.reshape(-1).tolist()
+    types = set(map(type, flat))
+    if types <= {int}:  # plain Python ints: one conversion, unless some overflow int64
+        try:
+            return validate_actions(np.array(flat, dtype=np.int64).reshape(shape), shape, n_actions, who)
+        except OverflowError:
+            pass
+    values = np.empty(len(flat), dtype=np.int64)
+    for k, v in enumerate(flat):
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)):
+            _raise_type(arr, _flag(arr, k), shape, n_actions, who)
+        if isinstance(v, (float, np.floating)) and math.isfinite(v) and v != math.floor(v):
+            _raise_type(arr, _flag(arr, k), shape, n_actions, who)
+        if not 0 <= v < n_actions:  # also false for nan
+            _raise_range(arr, _flag(arr, k), shape, n_actions, who)
+        values[k] = int(v)
+    return values.reshape(shape)
+
+
+def _flag(arr: np.ndarray, k: int) -> np.ndarray:
+    flags = np.zeros(arr.size, dtype=bool)
+    flags[k] = True
+    return flags.reshape(arr.shape)
+
+
+def _axes(shape: tuple[int, ...]) -> str:
+    return "battles, agents" if len(shape) == 2 else "one action per agent"
+
+
+def _agent(index: tuple[int, ...], shape: tuple[int, ...], who: str) -> str:
+    """The agent at ``index``: "red agent 2", or "battle 3, red agent 2" in a batch."""
+    where = f"battle {index[0]}, " if len(shape) == 2 and shape[0] > 1 else ""
+    return f"{where}{who} agent {index[-1]}".strip()
+
+
+def _shown(value: Any) -> str:
+    """The value as the caller wrote it: NumPy scalars as their Python value (``1e+19``, not a wrapped int)."""
+    return repr(value.item() if isinstance(value, np.generic) else value)
+
+
+def _raise_type(arr: np.ndarray, flags: np.ndarray, shape: tuple[int, ...], n_actions: int, who: str) -> None:
+    index = tuple(int(v) for v in np.argwhere(flags)[0])
+    value = arr[index]
+    what = "a bool" if isinstance(value, (bool, np.bool_)) else f"of type {type(value).__name__}"
+    if isinstance(value, (float, np.floating)):
+        what = "not a whole number"
+    raise TypeError(f"{_agent(index, shape, who)}: action {_shown(value)} is {what}; actions are ints "
+                    f"0..{n_actions - 1}")
+
+
+def _raise_range(arr: np.ndarray, flags: np.ndarray, shape: tuple[int, ...], n_actions: int, who: str) -> None:
+    index = tuple(int(v) for v in np.argwhere(flags)[0])
+    raise InvalidActionError(f"{_agent(index, shape, who)}: action {_shown(arr[index])} is out of range; actions are "
+                             f"0..{n_actions - 1}")
 
 
 def action_name(action: int, healer: bool = False) -> str:
@@ -63,36 +173,27 @@ def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray |
     return out
 
 
-def check_actions(feats: SideFeatures, actions: np.ndarray, avail: np.ndarray,
-                  active: np.ndarray | None = None) -> np.ndarray:
-    """Validate a side's actions ``(B, n_agents)`` against ``avail``; returns them as int64.
+def check_actions(feats: SideFeatures, actions: Any, avail: np.ndarray, active: np.ndarray | None = None,
+                  hint: str = "") -> np.ndarray:
+    """Validate a side's actions ``(B, n_agents)`` (:func:`validate_actions`), then against ``avail``; returns them
+    as a fresh int64 array.
 
-    Raises :class:`InvalidActionError` naming the first offending agent, its action and the available ones.
-    Battles with ``active[b]`` False are not checked.
+    Raises :class:`InvalidActionError` naming the first offending agent, its action and the available ones (then
+    ``hint``). Availability is not checked in battles with ``active[b]`` False; types and range always are.
     """
     batch, n = avail.shape[0], feats.n_agents
-    try:
-        acts = np.asarray(actions, dtype=np.int64)
-    except (TypeError, ValueError, OverflowError):
-        raise InvalidActionError(f"{SIDE_NAMES[feats.side]} actions must be integers, got {actions!r}") from None
-    if acts.shape != (batch, n):
-        raise InvalidActionError(f"{SIDE_NAMES[feats.side]} actions must have shape ({batch}, {n}) "
-                                 f"(battles, agents), got {acts.shape}")
+    acts = validate_actions(actions, (batch, n), feats.n_actions, SIDE_NAMES[feats.side])
     check = np.ones(batch, dtype=bool) if active is None else np.ascontiguousarray(active, dtype=bool)
-    acts = np.ascontiguousarray(acts)
     bad = first_invalid_action(acts, avail, check)
     if bad >= 0:
         b, i = divmod(int(bad), n)
         a = int(acts[b, i])
-        where = f"battle {b}, " if batch > 1 else ""
-        who = f"{where}{SIDE_NAMES[feats.side]} agent {i}"
-        if not 0 <= a < feats.n_actions:
-            raise InvalidActionError(f"{who}: action {a} is out of range; actions are 0..{feats.n_actions - 1}")
+        who = _agent((b, i), (batch, n), SIDE_NAMES[feats.side])
         healer = bool(feats.own_healer[i])
         allowed = [int(v) for v in np.flatnonzero(avail[b, i])]
         names = ", ".join(f"{v} ({action_name(v, healer)})" for v in allowed)
         raise InvalidActionError(f"{who}: action {a} ({action_name(a, healer)}) is not available; "
-                                 f"available: {names}")
+                                 f"available: {names}{hint}")
     return acts
 
 

@@ -14,16 +14,21 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from smac_hard_gym.actions import available_actions
+from smac_hard_gym.actions import ResetNeededError, available_actions, check_actions, validate_actions
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.features import SmacOptions
 from smac_hard_gym.units import STATS, S
 
-__all__ = ["SMACHardEnv", "JointView", "OBS_MODES", "INVALID_ACTION_POLICIES", "RENDER_FPS", "make_options"]
+__all__ = ["SMACHardEnv", "JointView", "OBS_MODES", "INVALID_ACTION_POLICIES", "RENDER_FPS", "make_options",
+           "check_invalid_action"]
 
 OBS_MODES = ("joint", "joint+state", "dict")
-INVALID_ACTION_POLICIES = ("raise", "noop")
+INVALID_ACTION_POLICIES = ("noop", "raise")  # the first is the default
+# Appended to an unavailable action's error in the gymnasium envs: how to get the other policy.
+RAISE_HINT = ("; invalid_action='raise' is set (for debugging): the default invalid_action='noop' "
+              "(gymnasium.make(id, invalid_action='noop')) replaces unavailable actions by a legal one and counts them "
+              "in info['invalid_actions']")
 RENDER_FPS = 8  # frames per second when shown: 4x the Normal-speed game time of step_mul=8 loops per step
 OBS_LOW = -1.0  # SMAC features are ratios in [-1, 1] (offsets / sight range, health / max, one-hots); see _state_high
 
@@ -40,6 +45,13 @@ def make_options(options: SmacOptions | dict | None, smac_options: dict[str, Any
         raise TypeError(f"options must be a SmacOptions, a dict of SMAC options or None, got {options!r}")
     base.update(smac_options)
     return SmacOptions.from_kwargs(**base)
+
+
+def check_invalid_action(policy: str) -> str:
+    """``policy`` when it is one of :data:`INVALID_ACTION_POLICIES`, else a ``ValueError`` listing them."""
+    if not isinstance(policy, str) or policy not in INVALID_ACTION_POLICIES:
+        raise ValueError(f"invalid_action must be one of {INVALID_ACTION_POLICIES}, got {policy!r}")
+    return policy
 
 
 def _state_high(core: TwoPlayerCore) -> float:
@@ -120,31 +132,24 @@ class JointView:
         # bool and int8 share a layout: a plain copy is several times faster than a conversion.
         return masks.view(dtype).copy() if np.dtype(dtype).itemsize == 1 else masks.astype(dtype)
 
-    def resolve_actions(self, actions: np.ndarray, policy: str, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Actions ``(B, n_agents)`` as int64 and the number replaced per battle.
+    def resolve_actions(self, actions: Any, policy: str, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Actions ``(B, n_agents)`` as a fresh int64 array and the number replaced per battle.
 
-        ``policy="raise"`` leaves illegal actions for the core to reject with an error naming the battle, agent and
-        available actions; ``"noop"`` replaces each illegal (unavailable or out-of-range) action in an active battle
-        by the agent's first available action: no-op (0) for a dead agent, stop (1) for a living one.
+        Types, shape and range are checked first (:func:`~smac_hard_gym.actions.validate_actions`: ``TypeError`` or
+        ``InvalidActionError``, whatever the policy). Then an unavailable action in an active battle raises
+        :class:`~smac_hard_gym.actions.InvalidActionError` naming the battle, agent and available actions
+        (``policy="raise"``), or is replaced by the agent's first available action (``"noop"``): no-op (0) for a
+        dead agent, stop (1) for a living one. Nothing changes state here.
         """
-        acts = np.asarray(actions)
-        if acts.dtype.kind not in "iu":
-            if acts.dtype.kind == "f" and np.all(np.isfinite(acts)) and np.all(acts == np.round(acts)):
-                acts = acts.astype(np.int64)
-            else:
-                raise ValueError(f"actions must be integers (one per agent, 0..{self.n_actions - 1}), "
-                                 f"got {actions!r}")
-        acts = acts.astype(np.int64, copy=True)
-        replaced = np.zeros(acts.shape[0], dtype=np.int64)
-        if policy == "noop":
-            avail = self.core.avail_actions(RED)
-            in_range = (acts >= 0) & (acts < self.n_actions)
-            rows, agents = np.indices(acts.shape)
-            legal = in_range & avail[rows, agents, np.clip(acts, 0, self.n_actions - 1)]
-            bad = ~legal & np.asarray(active, dtype=bool)[:, None]
-            acts[bad] = avail.argmax(axis=2)[bad]
-            replaced = bad.sum(axis=1)
-        return acts, replaced
+        acts = validate_actions(actions, (self.core.batch_size, self.n_agents), self.n_actions, "red")
+        avail = self.core.avail_actions(RED)
+        if policy == "raise":
+            check_actions(self.core.features[RED], acts, avail, active, hint=RAISE_HINT)
+            return acts, np.zeros(acts.shape[0], dtype=np.int64)
+        rows, agents = np.indices(acts.shape)
+        bad = ~avail[rows, agents, acts] & np.asarray(active, dtype=bool)[:, None]
+        acts[bad] = avail.argmax(axis=2)[bad]
+        return acts, bad.sum(axis=1)
 
 
 class SMACHardEnv(gym.Env):
@@ -160,9 +165,12 @@ class SMACHardEnv(gym.Env):
         6+j attack enemy j, or heal ally j for medivacs). ``action_masks()`` returns the legal ones, flat bool of
         length ``n_agents * n_actions`` (agent-major; MaskablePPO reads it), and ``info["action_mask"]`` the same
         as a fresh int8 array; every agent always has at least one legal action (no-op when dead, stop when alive).
-        An illegal action raises :class:`~smac_hard_gym.actions.InvalidActionError` naming the agent and its
-        legal actions; with ``invalid_action="noop"`` it is replaced by the agent's first legal action instead (no-op
-        when dead, stop when alive) and ``info["invalid_actions"]`` counts the replacements.
+        An action is an int (or an integral float) in ``0..n_actions-1``; anything else raises ``TypeError`` or
+        :class:`~smac_hard_gym.actions.InvalidActionError` (a ``ValueError``), and the env is left as it was. An
+        unavailable action (in range, masked out) is replaced by the agent's first legal action (``invalid_action=
+        "noop"``, the default, so ``action_space.sample()`` and gymnasium's and SB3's checkers work: no-op when dead,
+        stop when alive) and ``info["invalid_actions"]`` counts the replacements; ``invalid_action="raise"`` (for
+        debugging) raises ``InvalidActionError`` naming the agent and its legal actions instead.
 
     Observation Space
         ``obs_mode="joint"`` (default): Box float32 ``(n_agents * obs_size,)``, every agent's SMAC observation
@@ -185,12 +193,13 @@ class SMACHardEnv(gym.Env):
 
     Info
         ``battle_won``, ``dead_allies``, ``dead_enemies``, ``opponent`` (the script playing this episode) and
-        ``action_mask`` after every step; ``opponent`` and ``action_mask`` after reset.
+        ``action_mask`` after every step (and ``invalid_actions`` under ``invalid_action="noop"``); ``opponent`` and
+        ``action_mask`` after reset.
 
     Arguments
         ``map_name``; ``opponent`` (``"default"`` = the map's SMAC-HARD pool, ``"blackbox"``, ``"base"``, any script
         name, a user script reference, a Script, or a list of them) and ``opponent_probs``; ``obs_mode``;
-        ``invalid_action`` (``"raise"`` or ``"noop"``); ``render_mode`` (``"rgb_array"`` or ``"human"``);
+        ``invalid_action`` (``"noop"``, the default, or ``"raise"``); ``render_mode`` (``"rgb_array"`` or ``"human"``);
         ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a :class:`~smac_hard_gym.features.SmacOptions`
         or dict) and any SMAC observation/reward option as a keyword (``reward_sparse=True``, ...).
 
@@ -202,11 +211,10 @@ class SMACHardEnv(gym.Env):
 
     def __init__(self, map_name: str = "3m", *, opponent: Any = "default",
                  opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
-                 invalid_action: str = "raise", render_mode: str | None = None, backend: str = "native",
+                 invalid_action: str = "noop", render_mode: str | None = None, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
                  **smac_options: Any) -> None:
-        if invalid_action not in INVALID_ACTION_POLICIES:
-            raise ValueError(f"invalid_action must be one of {INVALID_ACTION_POLICIES}, got {invalid_action!r}")
+        check_invalid_action(invalid_action)
         if obs_mode not in OBS_MODES:
             raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
         from smac_hard_gym.render import check_render_mode  # the renderer itself loads on the first render()
@@ -239,12 +247,10 @@ class SMACHardEnv(gym.Env):
                                      "action_mask": self._mask().astype(np.int8)}
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """One step with every agent's action (see Action Space); a rejected action changes nothing."""
         if self._needs_reset:
-            raise RuntimeError("the episode is over (or never started); call reset() before step()")
-        acts = np.asarray(action)
-        if acts.shape != (self.n_agents,):
-            raise ValueError(f"action must hold one action per agent, shape ({self.n_agents},), got {acts.shape} "
-                             f"({action!r})")
+            raise ResetNeededError("call reset() before step(): the episode is over (or never started)")
+        acts = validate_actions(action, (self.n_agents,), self.n_actions, "red")
         acts, replaced = self.view.resolve_actions(acts[None], self.invalid_action, ~self.core.done)
         result = self.core.step(acts)
         # A game the sc2 backend lost and restarted ended without a result: truncated, flagged in info.

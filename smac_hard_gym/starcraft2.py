@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from smac_hard_gym.actions import ResetNeededError, validate_actions
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import BLUE, RED
 from smac_hard_gym.features import BLUE_WON, N_ACTIONS_NO_ATTACK, RED_WON, SideFeatures, SmacOptions, last_action_onehot
@@ -161,7 +162,7 @@ class StarCraft2Env:
         self._episode_steps = 0
         self._total_steps = 0
         self._episode_count = 0
-        self._episode_over = False
+        self._needs_reset = True  # until the first reset(), and again once an episode ends
         self._cache: dict[int, dict[str, np.ndarray]] = {}  # per player: battle 0's encoded features
         self._renderer = None
 
@@ -179,28 +180,36 @@ class StarCraft2Env:
         self._cache.clear()
         self._episode_steps = 0
         self._episode_count += 1
-        self._episode_over = False
+        self._needs_reset = False
         if self.mode == "self-play":
             return [self.get_obs(RED), self.get_obs(BLUE)], [self.get_state(RED), self.get_state(BLUE)]
         return self.get_obs(), self.get_state()
 
     def step(self, actions: Any) -> tuple[Any, Any, dict[str, Any]]:
-        """One env step; ``actions`` lists each agent's action (self-play: ``[red_actions, blue_actions]``)."""
-        if self._episode_over:
-            raise RuntimeError("the episode is over; call reset() before step()")
+        """One env step; ``actions`` lists each agent's action (self-play: ``[red_actions, blue_actions]``).
+
+        Actions are ints (or integral floats); anything else raises ``TypeError``, a wrong length, a value out of
+        range or an unavailable action :class:`~smac_hard_gym.actions.InvalidActionError` (a ``ValueError``), and
+        the env is left as it was. Stepping before ``reset()`` or after the episode ended raises
+        :class:`~smac_hard_gym.actions.ResetNeededError`."""
+        if self._needs_reset:
+            raise ResetNeededError("call reset() before step(): the episode " +
+                                   ("has not started" if self._episode_count == 0 else "is over"))
         if self.mode == "self-play":
-            if len(actions) != 2 or not all(hasattr(a, "__len__") for a in actions):
+            if isinstance(actions, (str, bytes, dict, set)) or not hasattr(actions, "__len__"):
+                raise TypeError(f"mode 'self-play' steps with [red_actions, blue_actions], got {actions!r}")
+            if len(actions) != 2 or not all(hasattr(side, "__len__") for side in actions):
                 raise ValueError(f"mode 'self-play' steps with [red_actions, blue_actions], got {actions!r}")
-            red = self._as_actions(actions[0], self.n_agents, "red")
-            blue = self._as_actions(actions[1], self.n_enemies, "blue")
+            red = validate_actions(actions[0], (self.n_agents,), self.n_actions, "red")
+            blue = validate_actions(actions[1], (self.n_enemies,), self.n_actions_list[BLUE], "blue")
             result = self._core.step(red[None], blue[None])
         else:
-            result = self._core.step(self._as_actions(actions, self.n_agents, "red")[None])
+            result = self._core.step(validate_actions(actions, (self.n_agents,), self.n_actions, "red")[None])
         self._cache.clear()
         self._episode_steps += 1
         self._total_steps += 1
         terminated = bool(result.terminated[0] or result.truncated[0])
-        self._episode_over = terminated
+        self._needs_reset = terminated
         outcome = int(result.outcome[0])
         won = (outcome == RED_WON, outcome == BLUE_WON)
         dead_red, dead_blue = int(result.dead_red[0]), int(result.dead_blue[0])
@@ -220,16 +229,6 @@ class StarCraft2Env:
         if result.restarted[0]:  # sc2 backend: the game was lost and restarted (SMAC returns 0, True, {} here)
             info["restarted"] = True
         return reward, done, info
-
-    @staticmethod
-    def _as_actions(actions: Any, n: int, side: str) -> np.ndarray:
-        try:
-            values = [int(a) for a in actions]
-        except (TypeError, ValueError):
-            raise ValueError(f"{side} actions must be a sequence of {n} ints, got {actions!r}") from None
-        if len(values) != n:
-            raise ValueError(f"{side} actions must list one action per agent ({n}), got {len(values)}")
-        return np.array(values, dtype=np.int64)
 
     # -----------------------------------------------------------------------------------------------------------
     # Observations, state, actions.

@@ -46,6 +46,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from smac_hard_gym.actions import InvalidActionError, ResetNeededError, validate_actions
 from smac_hard_gym.autoreset import AUTORESET_NAMES, parse_autoreset_mode
 
 __all__ = ["SubprocVectorEnv", "BatchWorker", "WorkerError", "make_subproc_env", "concat_infos",
@@ -89,6 +90,7 @@ class BatchWorker:
             "num_envs": env.num_envs, "single_observation_space": env.single_observation_space,
             "single_action_space": env.single_action_space, "autoreset_mode": AUTORESET_NAMES.get(mode, mode),
             "render_mode": getattr(env, "render_mode", None), "mask_size": _mask_size(env),
+            "invalid_action": getattr(env, "invalid_action", None),
         }
 
     def reset(self, seed: Any = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
@@ -435,7 +437,8 @@ class SubprocVectorEnv(VectorEnv):
     def _configure(self, descriptions: list[dict[str, Any]]) -> None:
         first = descriptions[0]
         for w, desc in enumerate(descriptions[1:], start=1):
-            for key in ("single_observation_space", "single_action_space", "autoreset_mode", "mask_size"):
+            for key in ("single_observation_space", "single_action_space", "autoreset_mode", "mask_size",
+                        "invalid_action"):
                 if desc[key] != first[key]:
                     raise ValueError(f"worker {w} differs from worker 0 in {key}: {desc[key]!r} != {first[key]!r}")
         mode = first["autoreset_mode"]
@@ -456,6 +459,9 @@ class SubprocVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.mask_size = first["mask_size"]
+        self.invalid_action = first["invalid_action"]  # the workers' policy for unavailable actions, if they say
+        self._needs_reset = True  # until the first reset()
+        self._ended = np.zeros(self.num_envs, dtype=bool)  # episodes that ended on the last step
         layout = _obs_layout(self.single_observation_space, self.num_envs) or []
         if self.mask_size:
             layout.append(("mask", (self.num_envs, self.mask_size), "|i1"))
@@ -610,15 +616,22 @@ class SubprocVectorEnv(VectorEnv):
             replies.update(retry)
         for worker in chosen:
             worker.needs_reset = False
+        self._needs_reset = False
+        self._ended[slice(None) if mask is None else mask] = False
         parts = [self._unpack_reset(w, replies.get(w.index)) for w in self._workers]
         obs = self._observations(parts)  # also restores the masks into each part's infos
         return obs, concat_infos([p["infos"] for p in parts], [w.size for w in self._workers])
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every worker's battles. Actions are checked here, before any worker steps, so a rejected step
+        (``TypeError`` / ``ValueError``, as the native env raises them) leaves every battle as it was."""
         self._check_open()
-        actions = np.asarray(actions)
-        if actions.shape[:1] != (self.num_envs,):
-            raise ValueError(f"actions must have one row per battle ({self.num_envs}), got shape {actions.shape}")
+        if self._needs_reset:
+            raise ResetNeededError("call reset() before step(): no episode has started")
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._ended.any():
+            raise ResetNeededError(f"battles {np.flatnonzero(self._ended).tolist()} ended and autoreset is "
+                                   "disabled; reset them with reset(options={'reset_mask': mask}) before stepping")
+        actions = self._check_actions(actions)
         for worker in self._workers:
             if worker.needs_reset:
                 self._send(worker, "reset", (None, None))
@@ -649,9 +662,40 @@ class SubprocVectorEnv(VectorEnv):
                 parts.append({"obs": obs_part, "infos": info})
         for w in failures:
             self._workers[w].needs_reset = self.autoreset_mode == AutoresetMode.NEXT_STEP
+        if self.autoreset_mode != AutoresetMode.SAME_STEP:  # SAME_STEP has reset them already
+            self._ended = terminated | truncated
         obs = self._observations(parts)  # also restores the masks into each part's infos
         infos = concat_infos([p["infos"] for p in parts], [w.size for w in self._workers])
         return obs, rewards, terminated, truncated, infos
+
+    def _check_actions(self, actions: Any) -> np.ndarray:
+        """Type, shape and range against the action space; availability against the latest masks when the workers
+        raise on unavailable actions (rows whose episode ended last step are reset by it, so not checked)."""
+        space = self.single_action_space
+        if isinstance(space, spaces.MultiDiscrete) and space.nvec.ndim == 1 and (space.nvec == space.nvec[0]).all():
+            acts = validate_actions(actions, (self.num_envs, len(space.nvec)), int(space.nvec[0]), "red")
+        elif isinstance(space, spaces.Discrete) and space.start == 0:
+            acts = validate_actions(actions, (self.num_envs,), int(space.n), "red")
+        else:  # other spaces: the workers' envs check them
+            acts = np.asarray(actions)
+            if acts.shape[:1] != (self.num_envs,):
+                raise ValueError(f"actions must have one row per battle ({self.num_envs}), got shape {acts.shape}")
+            return acts
+        if self.invalid_action != "raise" or not self.mask_size or not self._masks_seen:
+            return acts
+        flat = acts.reshape(self.num_envs, -1)
+        n_actions = self.mask_size // flat.shape[1]
+        masks = self._masks.reshape(self.num_envs, flat.shape[1], n_actions)
+        rows, agents = np.indices(flat.shape)
+        bad = ~masks[rows, agents, flat] & ~self._ended[:, None]
+        if bad.any():
+            from smac_hard_gym.gym_env import RAISE_HINT
+
+            b, i = (int(v) for v in np.argwhere(bad)[0])
+            legal = np.flatnonzero(masks[b, i]).tolist()
+            raise InvalidActionError(f"battle {b}, red agent {i}: action {int(flat[b, i])} is not available; "
+                                     f"available: {legal}{RAISE_HINT}")
+        return acts
 
     def _after_restart(self, failures: dict[int, str]) -> dict[int, dict[str, Any]]:
         """What the rebuilt workers report this step: their episodes end as truncated, flagged in the infos.

@@ -18,11 +18,12 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from smac_hard_gym.actions import ResetNeededError
 from smac_hard_gym.autoreset import parse_autoreset_mode
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.features import RED_WON, SmacOptions
-from smac_hard_gym.gym_env import INVALID_ACTION_POLICIES, RENDER_FPS, JointView, make_options
+from smac_hard_gym.gym_env import RENDER_FPS, JointView, check_invalid_action, make_options
 
 __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 
@@ -55,8 +56,9 @@ class NativeVectorEnv(VectorEnv):
     - ``DISABLED``: ended battles wait for ``reset(options={"reset_mask": mask})``; stepping them is an error.
 
     Infos are gymnasium's dict of arrays with ``_key`` masks: ``battle_won``, ``dead_allies``, ``dead_enemies``,
-    ``opponent``, ``action_mask`` ((N, n_agents * n_actions) int8) and ``invalid_actions`` (``invalid_action=
-    "noop"``). ``action_masks()`` returns the bool masks of the current observations, shape (N, n_agents * n_actions).
+    ``opponent``, ``action_mask`` ((N, n_agents * n_actions) int8) and ``invalid_actions`` (the unavailable actions
+    replaced, under ``invalid_action="noop"``, the default; ``"raise"`` raises instead, as the single env does).
+    ``action_masks()`` returns the bool masks of the current observations, shape (N, n_agents * n_actions).
     ``max_episode_steps`` shortens the map's episode limit (never lengthens it). ``render()`` draws battle
     ``render_battles`` (an int), or a tiled grid of the listed battles (a list, or ``"all"``).
     """
@@ -64,14 +66,13 @@ class NativeVectorEnv(VectorEnv):
     def __init__(self, map_name: str = "3m", num_envs: int = 1, *,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, max_episode_steps: int | None = None,
                  opponent: Any = "default", opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
-                 invalid_action: str = "raise", render_mode: str | None = None,
+                 invalid_action: str = "noop", render_mode: str | None = None,
                  render_battles: int | Sequence[int] | str = 0, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
                  **smac_options: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
-        if invalid_action not in INVALID_ACTION_POLICIES:
-            raise ValueError(f"invalid_action must be one of {INVALID_ACTION_POLICIES}, got {invalid_action!r}")
+        check_invalid_action(invalid_action)
         from smac_hard_gym.render import check_render_mode  # the renderer itself loads on the first render()
 
         self.render_mode = check_render_mode(render_mode)
@@ -97,6 +98,7 @@ class NativeVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._ended = np.zeros(self.num_envs, dtype=bool)  # ended episodes that wait for a reset
+        self._needs_reset = True  # until the first reset()
         self._renderer = None
 
     def __repr__(self) -> str:
@@ -116,19 +118,20 @@ class NativeVectorEnv(VectorEnv):
         if isinstance(seed, (int, np.integer)):
             super().reset(seed=int(seed))
         self._reset_battles(rows, seeds)
+        self._needs_reset = False
         return self.view.observations(), self._info(np.zeros(self.num_envs, dtype=bool), rows)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        acts = np.asarray(actions)
-        shape = (self.num_envs, self.view.n_agents)
-        if acts.shape != shape:
-            raise ValueError(f"actions must have shape {shape} (envs, agents), got {acts.shape}")
+        """One step of every battle with actions ``(num_envs, n_agents)``; actions are checked as in
+        :class:`~smac_hard_gym.gym_env.SMACHardEnv`, and a rejected step changes nothing."""
+        if self._needs_reset:
+            raise ResetNeededError("call reset() before step(): no episode has started")
         mode = self.autoreset_mode
         if mode == AutoresetMode.DISABLED and self._ended.any():
-            raise RuntimeError(f"battles {np.flatnonzero(self._ended).tolist()} ended and autoreset is disabled; "
-                               "reset them with reset(options={'reset_mask': mask}) before stepping")
+            raise ResetNeededError(f"battles {np.flatnonzero(self._ended).tolist()} ended and autoreset is "
+                                   "disabled; reset them with reset(options={'reset_mask': mask}) before stepping")
         core = self.core
-        acts, replaced = self.view.resolve_actions(acts, self.invalid_action, ~core.done)
+        acts, replaced = self.view.resolve_actions(actions, self.invalid_action, ~core.done)
         result = core.step(acts)
         # A game the sc2 backend lost and restarted ended without a result: truncated, flagged in infos.
         terminated = result.terminated & ~result.restarted

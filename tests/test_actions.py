@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from smac_hard_gym.actions import InvalidActionError, available_actions, check_actions, decode_actions
+from smac_hard_gym.actions import (
+    InvalidActionError,
+    available_actions,
+    check_actions,
+    decode_actions,
+    validate_actions,
+)
 from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import (
     BLUE,
@@ -158,7 +164,7 @@ def test_invalid_actions_name_agent_action_and_choices(marines):
         check_actions(feats, [[1, 1, 9]], avail)
     with pytest.raises(InvalidActionError, match=r"shape \(1, 3\)"):
         check_actions(feats, [[1, 1]], avail)
-    with pytest.raises(InvalidActionError, match="must be integers"):
+    with pytest.raises(TypeError, match="red agent 0: action 'stop' is of type str"):
         check_actions(feats, [["stop", 1, 1]], avail)
     # A battle that is not active is not checked.
     np.testing.assert_array_equal(check_actions(feats, [[0, 0, 0]], avail, active=np.array([False])), 0)
@@ -172,3 +178,53 @@ def test_dead_agent_must_noop(marines):
                                                  r"available: 0 \(no-op\)$"):
         check_actions(feats, [[1, 1, 1]], avail)
     check_actions(feats, [[0, 1, 1]], avail)
+
+
+# validate_actions: one rule per row. (actions for 3 agents with 9 actions, error type, message fragment)
+REJECTED = [
+    ([1, 1, 3.5], TypeError, "red agent 2: action 3.5 is not a whole number"),
+    (np.array([1.0, 1.0, 3.5]), TypeError, "action 3.5 is not a whole number"),
+    ([1, True, 1], TypeError, "red agent 1: action True is a bool"),
+    (np.array([True, True, True]), TypeError, "action True is a bool"),
+    ([1, 1, "3"], TypeError, "action '3' is of type str"),
+    ([1, 1, 3j], TypeError, "action 3j is of type complex"),
+    ([1, None, 1], TypeError, "action None is of type NoneType"),
+    ([1, 1, [3]], TypeError, r"action \[3\] is of type list"),
+    ("113", TypeError, "must be a sequence or array of ints"),
+    (None, TypeError, "must be a sequence or array of ints"),
+    ([1, 1, float("nan")], InvalidActionError, "action nan is out of range"),
+    ([1, 1, float("inf")], InvalidActionError, "action inf is out of range"),
+    ([1, 1, 1e19], InvalidActionError, r"action 1e\+19 is out of range"),  # not a wrapped int64
+    (np.array([1, 1, 1e19]), InvalidActionError, r"action 1e\+19 is out of range"),
+    ([1, 1, 2**70], InvalidActionError, f"action {2**70} is out of range"),
+    ([1, 1, -1], InvalidActionError, "action -1 is out of range; actions are 0..8"),
+    (np.array([1, 1, 9], dtype=np.uint8), InvalidActionError, "action 9 is out of range"),
+    ([1, 1], InvalidActionError, r"shape \(3,\) \(one action per agent\), got \(2,\)"),
+    ([[1, 1, 1]], InvalidActionError, r"got \(1, 3\)"),
+    ([[1, 1], 1, 1], TypeError, r"red agent 0: action \[1, 1\] is of type list"),
+    (3, InvalidActionError, r"got \(\)"),
+]
+
+
+@pytest.mark.parametrize(("actions", "error", "message"), REJECTED, ids=[repr(r[0])[:30] for r in REJECTED])
+def test_validate_actions_rejects_what_is_not_an_action_naming_it_as_passed(actions, error, message):
+    with pytest.raises(error, match=message):
+        validate_actions(actions, (3,), 9)
+    assert error in (TypeError, InvalidActionError) and issubclass(InvalidActionError, ValueError)
+
+
+@pytest.mark.parametrize("actions", [[1, 2, 8], (np.int8(1), np.uint64(2), np.int32(8)), np.array([1, 2, 8]),
+                                     np.array([1.0, 2.0, 8.0], dtype=np.float32), [1.0, 2, np.float64(8.0)]],
+                         ids=["ints", "numpy-scalars", "int-array", "float32-array", "integral-floats"])
+def test_validate_actions_accepts_ints_and_integral_floats(actions):
+    out = validate_actions(actions, (3,), 9)
+    assert out.dtype == np.int64 and out.tolist() == [1, 2, 8]
+
+
+def test_validate_actions_names_the_battle_in_a_batch():
+    with pytest.raises(InvalidActionError, match="battle 1, blue agent 2: action 9 is out of range"):
+        validate_actions(np.array([[1, 1, 1], [1, 1, 9]]), (2, 3), 9, "blue")
+    source = np.array([[1, 1, 1], [1, 1, 2]])
+    out = validate_actions(source, (2, 3), 9)
+    out[0, 0] = 5
+    assert source[0, 0] == 1  # a fresh array: callers may change it

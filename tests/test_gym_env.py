@@ -29,8 +29,8 @@ SMAC_SIZES = {
 
 @pytest.mark.parametrize("env_id", smac_hard_gym.ENV_IDS)
 def test_gymnasium_and_sb3_checkers_pass(env_id):
-    # The checkers step with unmasked random actions, so the env replaces illegal ones (invalid_action="noop").
-    env = gym.make(env_id, invalid_action="noop")
+    # The checkers step with unmasked random actions: the default invalid_action="noop" replaces unavailable ones.
+    env = gym.make(env_id)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped, skip_render_check=True)
@@ -63,8 +63,8 @@ def _masked_sample(env, mask):
 
 
 def test_masked_sampling_never_raises_and_masks_agree():
-    # Default invalid_action="raise": one illegal action would end the test with InvalidActionError.
-    env = gym.make("SMACHard-MMM-v0")
+    # invalid_action="raise": one illegal action would end the test with InvalidActionError.
+    env = gym.make("SMACHard-MMM-v0", invalid_action="raise")
     env.action_space.seed(0)
     episodes = 0
     obs, info = env.reset(seed=3)
@@ -103,16 +103,29 @@ def test_dead_agents_may_only_no_op():
     env.close()
 
 
-def test_illegal_action_raises_naming_the_agent():
-    env = SMACHardEnv("3m")
+def test_illegal_action_raises_naming_the_agent_and_the_switch():
+    env = SMACHardEnv("3m", invalid_action="raise")
     env.reset(seed=0)
     # At the spawn the enemies are far beyond the shooting range: no attack is available.
-    with pytest.raises(InvalidActionError, match=r"agent 1: action 7 \(attack enemy 1\) is not available"):
+    with pytest.raises(InvalidActionError, match=r"agent 1: action 7 \(attack enemy 1\) is not available.*"
+                                                 r"invalid_action='noop'"):
         env.step([1, 7, 1])
     with pytest.raises(InvalidActionError, match="out of range"):
         env.step([1, 1, 99])
-    with pytest.raises(ValueError, match=r"one action per agent, shape \(3,\)"):
+    with pytest.raises(ValueError, match=r"shape \(3,\) \(one action per agent\)"):
         env.step([1, 1])
+    env.close()
+
+
+def test_default_policy_replaces_unavailable_actions_but_rejects_values_outside_the_space():
+    env = gym.make("SMACHard-3m-v0")
+    assert env.unwrapped.invalid_action == "noop"
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([1, 7, 1]))
+    assert info["invalid_actions"] == 1
+    for bad, error in (([1, 1, 9], ValueError), ([1, 1, -1], ValueError), ([1, 1, 2.5], TypeError)):
+        with pytest.raises(error):
+            env.step(bad)
     env.close()
 
 
@@ -123,7 +136,7 @@ def test_noop_policy_replaces_illegal_actions_with_the_first_legal_one():
     b, _ = explicit.reset(seed=5)
     for _ in range(3):
         # Alive agents: the first legal action is stop (1); attacks at the spawn are illegal.
-        a, ra, _, _, info = replaced.step([6, 7, 99])
+        a, ra, _, _, info = replaced.step([6, 7, 8])
         b, rb, _, _, _ = explicit.step([1, 1, 1])
         assert info["invalid_actions"] == 3
         np.testing.assert_array_equal(a, b)
@@ -272,4 +285,13 @@ def test_render_without_mode_warns_and_returns_none():
     env.reset(seed=0)
     with pytest.warns(UserWarning, match="render_mode=None"):
         assert env.render() is None
+    env.close()
+
+
+def test_step_before_reset_raises_reset_needed():
+    env = SMACHardEnv("3m")
+    with pytest.raises(gym.error.ResetNeeded, match=r"call reset\(\) before step\(\)"):
+        env.step([1, 1, 1])
+    env.reset(seed=0)
+    env.step([1, 1, 1])
     env.close()

@@ -5,10 +5,11 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import gymnasium
 import numpy as np
 import pytest
 
-from smac_hard_gym.actions import InvalidActionError
+from smac_hard_gym.actions import InvalidActionError, ResetNeededError
 from smac_hard_gym.opponents import Script
 from smac_hard_gym.starcraft2 import StarCraft2Env
 
@@ -253,3 +254,28 @@ def test_import_stays_light_and_exports_the_env():
     code = ("import sys, smac_hard_gym; assert 'smac_hard_gym.starcraft2' not in sys.modules; "
             "from smac_hard_gym import StarCraft2Env; assert StarCraft2Env.__module__ == 'smac_hard_gym.starcraft2'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+@pytest.mark.parametrize("mode", ["script", "self-play"])
+def test_step_before_reset_raises_reset_needed(mode):
+    env = StarCraft2Env(map_name="2m_vs_1z", mode=mode)
+    actions = [[1, 1], [1]] if mode == "self-play" else [1, 1]
+    with pytest.raises(ResetNeededError, match=r"call reset\(\) before step\(\): the episode has not started"):
+        env.step(actions)
+    assert issubclass(ResetNeededError, (gymnasium.error.ResetNeeded, RuntimeError))
+    env.reset()
+    env.step(actions)
+
+
+def test_actions_are_ints_named_as_passed():
+    env = StarCraft2Env(map_name="3m")
+    env.reset()
+    with pytest.raises(TypeError, match="red agent 2: action 3.5 is not a whole number"):
+        env.step([1, 1, 3.5])
+    with pytest.raises(TypeError, match="action True is a bool"):
+        env.step([1, True, 1])
+    with pytest.raises(InvalidActionError, match=r"action 1e\+19 is out of range"):
+        env.step([1, 1, 1e19])
+    with pytest.raises(InvalidActionError, match=f"action {2**70} is out of range"):
+        env.step([1, 1, 2**70])
+    env.step([1.0, 1, np.int8(1)])  # integral floats and numpy ints are actions

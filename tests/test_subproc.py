@@ -18,7 +18,8 @@ import pytest
 from gymnasium.vector import AutoresetMode
 from test_vector_env import assert_same
 
-from smac_hard_gym.actions import InvalidActionError
+from smac_hard_gym.actions import InvalidActionError, ResetNeededError
+from smac_hard_gym.gym_env import SMACHardEnv
 from smac_hard_gym.subproc import SubprocVectorEnv, WorkerError, concat_infos, make_subproc_env
 from smac_hard_gym.vector import NativeVectorEnv
 
@@ -201,13 +202,32 @@ def test_a_hung_worker_is_detected_within_the_timeout(tmp_path):
 
 
 def test_env_errors_reach_the_parent_and_the_env_goes_on():
-    with make_subproc_env("3m", 2, 1, opponent="base") as env:
+    # Single envs in the workers: the parent cannot read their policy, so the worker rejects the action itself.
+    factory = functools.partial(SMACHardEnv, "3m", opponent="base", invalid_action="raise")
+    with SubprocVectorEnv([factory, factory]) as env:
         env.reset(seed=0)
         with pytest.raises(InvalidActionError, match="agent 0: action 8 .* not available"):
             env.step(np.array([[8, 1, 1], [1, 1, 1]]))
         obs, _ = env.reset(seed=0)
         assert obs.shape == (2, 90)
         env.step(np.ones((2, 3), dtype=np.int64))
+
+
+def test_actions_are_checked_before_any_worker_steps():
+    read_steps = _timestep_reader()
+    with make_subproc_env("3m", 2, 1, opponent="base", invalid_action="raise", obs_timestep_number=True) as env:
+        with pytest.raises(ResetNeededError, match=r"call reset\(\) before step\(\)"):
+            env.step(np.ones((2, 3), dtype=np.int64))
+        env.reset(seed=0)
+        with pytest.raises(InvalidActionError, match="battle 1, red agent 0: action 8 is not available.*"
+                                                     "invalid_action='noop'"):
+            env.step(np.array([[1, 1, 1], [8, 1, 1]]))
+        with pytest.raises(TypeError, match="battle 0, red agent 0: action 1.5 is not a whole number"):
+            env.step(np.full((2, 3), 1.5))
+        with pytest.raises(InvalidActionError, match="action 9 is out of range"):
+            env.step(np.array([[1, 1, 1], [1, 1, 9]]))
+        obs, *_ = env.step(np.ones((2, 3), dtype=np.int64))
+        assert read_steps(obs) == [1, 1]  # one step in each battle: no worker stepped before
 
 
 def test_closing_from_an_exception_stops_every_worker():

@@ -185,3 +185,21 @@ def test_repr_and_bad_arguments():
         NativeVectorEnv("3m", 2, render_battles=5)
     with pytest.raises(ValueError, match="max_episode_steps"):
         NativeVectorEnv("3m", 2, max_episode_steps=0)
+
+
+def test_step_before_reset_and_malformed_actions_raise_and_change_nothing():
+    env = NativeVectorEnv("3m", 2, opponent="base")
+    assert env.invalid_action == "noop"  # the single env's default
+    with pytest.raises(gym.error.ResetNeeded, match=r"call reset\(\) before step\(\)"):
+        env.step(np.ones((2, 3), dtype=np.int64))
+    env.reset(seed=0)
+    x = env.core.state.x.copy()
+    for actions, error in (([[1, 1, 1], [1, 1, 2.5]], TypeError), ([[1, 1, 1], [1, True, 1]], TypeError),
+                           (np.array([[1, 1, 1], [1, 1, 1e19]]), ValueError), ([[1, 1, 1], [-1, 1, 1]], ValueError)):
+        with pytest.raises(error, match="battle 1, red agent"):
+            env.step(actions)
+    np.testing.assert_array_equal(env.core.state.x, x)
+    assert env.core.episode_step.tolist() == [0, 0]
+    _, _, _, _, infos = env.step([[1, 1, 1], [6, 1, 1]])  # an unavailable attack is replaced, and counted
+    assert infos["invalid_actions"].tolist() == [0, 1]
+    env.close()
