@@ -17,6 +17,7 @@ from gymnasium import spaces
 from smac_hard_gym.actions import ResetNeededError, available_actions, check_actions, validate_actions
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
+from smac_hard_gym.feature_kernels import first_invalid_action
 from smac_hard_gym.features import SmacOptions
 from smac_hard_gym.units import STATS, S
 
@@ -143,13 +144,17 @@ class JointView:
         """
         acts = validate_actions(actions, (self.core.batch_size, self.n_agents), self.n_actions, "red")
         avail = self.core.avail_actions(RED)
+        active = np.ascontiguousarray(active, dtype=bool)
+        none = np.zeros(acts.shape[0], dtype=np.int64)
         if policy == "raise":
             check_actions(self.core.features[RED], acts, avail, active, hint=RAISE_HINT)
-            return acts, np.zeros(acts.shape[0], dtype=np.int64)
-        rows, agents = np.indices(acts.shape)
-        bad = ~avail[rows, agents, acts] & np.asarray(active, dtype=bool)[:, None]
-        acts[bad] = avail.argmax(axis=2)[bad]
-        return acts, bad.sum(axis=1)
+            return acts, none
+        if first_invalid_action(acts, avail, active) < 0:  # the usual case (masked policies): one cheap pass
+            return acts, none
+        bad = ~np.take_along_axis(avail, acts[..., None], axis=2)[..., 0]
+        bad &= active[:, None]
+        acts[bad] = avail[bad].argmax(axis=1)
+        return acts, np.count_nonzero(bad, axis=1).astype(np.int64)
 
 
 class SMACHardEnv(gym.Env):
