@@ -58,12 +58,12 @@ def test_make_with_module_prefix_in_a_fresh_process():
 
 
 def test_constructor_kwargs_pass_through():
-    env = gym.make("SMACHard-8m-v0", opponent="base", obs_mode="joint+state", invalid_action="noop",
+    env = gym.make("SMACHard-8m-v0", opponent="base", obs_mode="joint+state", invalid_action="raise",
                    reward_sparse=True, obs_last_action=True, backend="native")
     core = env.unwrapped.core
     assert core.opponent.name == "base"
     assert core.options.reward_sparse and core.options.obs_last_action
-    assert env.unwrapped.invalid_action == "noop"
+    assert env.unwrapped.invalid_action == "raise"
     # 8m with obs_last_action: SMAC's obs grows by (n_agents - 1) * n_actions = 7 * 14 columns.
     assert env.observation_space.shape == (8 * (80 + 7 * 14) + 168,)
     env.close()
@@ -89,3 +89,13 @@ def test_make_vec_uses_the_native_vector_env_and_passes_autoreset_mode():
     assert shorter.episode_limit == 10
     assert shorter.metadata["autoreset_mode"] is gym.vector.AutoresetMode.NEXT_STEP
     shorter.close()
+
+
+def test_single_and_vector_envs_share_the_invalid_action_default():
+    env = gym.make("SMACHard-3m-v0")
+    envs = gym.make_vec("SMACHard-3m-v0", num_envs=2)
+    assert env.unwrapped.invalid_action == envs.invalid_action == "noop"
+    strict = gym.make_vec("SMACHard-3m-v0", num_envs=2, invalid_action="raise")
+    assert strict.invalid_action == "raise"
+    for e in (env, envs, strict):
+        e.close()
