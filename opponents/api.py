@@ -17,7 +17,7 @@ sit behind the same two methods.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -26,7 +26,7 @@ from smac_hard_gym.engine.state import BLUE, RED, BattleState, Commands
 from smac_hard_gym.maps import MapSpec, UnitGroup
 from smac_hard_gym.units import STATS, S
 
-__all__ = ["SideView", "Script", "ScriptError", "RED", "BLUE", "spawn_centre"]
+__all__ = ["SideView", "Script", "ScriptError", "RED", "BLUE", "spawn_centre", "read_only_spec"]
 
 
 class ScriptError(RuntimeError):
@@ -41,6 +41,11 @@ class ScriptError(RuntimeError):
         self.map_name = map_name
         self.cause = cause
 
+    def __reduce__(self):
+        # The default reduce rebuilds from the one-string ``args``, which does not fit __init__: crossing a process
+        # boundary (vector env workers, the sandbox) would lose the class and its fields. __dict__ carries notes.
+        return type(self), (self.script, self.map_name, self.cause), dict(self.__dict__)
+
 
 def spawn_centre(groups: tuple[UnitGroup, ...]) -> np.ndarray:
     """Mean spawn point of a side's unit groups, weighted by unit count (shape (2,))."""
@@ -49,9 +54,23 @@ def spawn_centre(groups: tuple[UnitGroup, ...]) -> np.ndarray:
     return (points * counts[:, None]).sum(axis=0) / counts.sum()
 
 
+def _frozen_copy(array: np.ndarray) -> np.ndarray:
+    out = array.copy()
+    out.flags.writeable = False
+    return out
+
+
+def read_only_spec(spec: MapSpec) -> MapSpec:
+    """``spec`` with read-only copies of its terrain arrays (the engine's own spec stays as it is)."""
+    return replace(spec, pathable=_frozen_copy(spec.pathable), cliff=_frozen_copy(spec.cliff))
+
+
 @dataclass
 class SideView:
     """One side's view of B battles: its own units and the enemy's, as (B, n) array views (no copies).
+
+    Built-in scripts get views of the live state and must not write them; the guard hands user scripts
+    :meth:`read_only` copies instead, so a write fails there rather than corrupting the battle.
 
     ``episode_step[b]`` counts env steps since battle b's reset (0 on the first step). Own and enemy indices are
     0-based within each side; ``own_slot``/``enemy_slot`` turn them into the absolute slots that commands use.
@@ -73,6 +92,17 @@ class SideView:
         red, blue = slice(0, n_red), slice(n_red, n_units)
         own, enemy = (red, blue) if side == RED else (blue, red)
         return cls(state=state, spec=spec, side=side, own=own, enemy=enemy, episode_step=episode_step)
+
+    def read_only(self, spec: MapSpec | None = None) -> SideView:
+        """A copy of this view over read-only copies of the state and step counter, for untrusted scripts.
+
+        Writes raise ValueError, and a script that turns ``flags.writeable`` back on only changes its copy, never
+        the engine. ``spec``: a read-only twin of ``self.spec`` made earlier by :func:`read_only_spec` (made here
+        when None).
+        """
+        state = BattleState(*(_frozen_copy(a) for a in self.state))
+        return SideView(state=state, spec=read_only_spec(self.spec) if spec is None else spec, side=self.side,
+                        own=self.own, enemy=self.enemy, episode_step=_frozen_copy(self.episode_step))
 
     @property
     def n_own(self) -> int:

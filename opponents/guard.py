@@ -1,24 +1,35 @@
 """The guard around untrusted scripts: exceptions, time limits and invalid commands become a :class:`ScriptError`.
 
-A guarded script writes into a private command buffer; the guard checks every command of the active battles and
-copies only this side's commands into the real buffer, so a faulty script can neither crash the engine with a bad
-slot nor steer the other side. Checks (the error names script, map, battle, unit slot and the rule broken):
+A guarded script sees read-only copies of the battle state (:meth:`SideView.read_only`): a write raises and becomes
+a ScriptError, and nothing it does to its copy reaches the engine. It writes into a private command buffer; the
+guard checks every command of the active battles and copies only this side's commands into the real buffer, so a
+faulty script can neither crash the engine with a bad slot nor steer the other side. Checks (the error names
+script, map, battle, unit slot and the rule broken):
 
 - the command kind is one of ``COMMAND_NAMES``;
 - ``attack`` targets an alive unit of the other side; ``heal`` targets another alive unit of this side;
 - ``move``/``attack_move`` points are finite (points outside the map are clamped by the engine);
 - nothing is written for the other side's slots.
 
-Time limits: a call that runs past ``time_limit`` seconds fails. In the main thread on POSIX an interval timer
-interrupts a script that never returns; elsewhere the limit is checked when the call returns.
+``sys.exit()`` in a script becomes a ScriptError too; Ctrl-C (KeyboardInterrupt) still stops the program.
+
+Time limits: a call that runs past ``time_limit`` seconds fails, on any thread. A watchdog thread raises an
+exception inside the script's thread once the limit has passed (and again every limit while it keeps running, so
+a bare ``except:`` cannot hold it off for good); no signal or interval timer is used, so the caller's own
+``SIGALRM``/``ITIMER_REAL`` are never touched. What this cannot stop: Python only delivers the exception between
+bytecodes, so a script stuck inside one C call (a long ``time.sleep``, a blocking read, a C extension loop) is
+interrupted only when that call returns, and one that crashes the interpreter or calls ``os._exit`` takes the host
+with it. A call that returns late is still reported as over its limit. For scripts you do not trust, run them in
+a child process instead: ``make_opponent(..., isolation="process")``
+(:class:`~smac_hard_gym.opponents.sandbox.ProcessIsolatedScript`), which kills the child at the limit. On
+Python implementations without ``ctypes.pythonapi`` (not CPython) the limit is only checked when the call returns.
 """
 
 from __future__ import annotations
 
-import signal
+import ctypes
 import threading
 import time
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -31,40 +42,104 @@ from smac_hard_gym.engine.state import (
     COMMAND_NAMES,
     Commands,
 )
-from smac_hard_gym.opponents.api import Script, ScriptError, SideView
+from smac_hard_gym.maps import MapSpec
+from smac_hard_gym.opponents.api import Script, ScriptError, SideView, read_only_spec
 
-__all__ = ["GuardedScript", "DEFAULT_TIME_LIMIT"]
+__all__ = ["GuardedScript", "DEFAULT_TIME_LIMIT", "check_commands"]
 
 DEFAULT_TIME_LIMIT = 5.0  # seconds per reset/act call
+_MIN_REPEAT = 0.05  # seconds between shots at a script that keeps running past its limit
 
 
 class _Timeout(BaseException):
-    """Raised inside the script by the interval timer (a BaseException, so ``except Exception`` cannot eat it)."""
+    """Raised inside the script by the watchdog (a BaseException, so ``except Exception`` cannot eat it)."""
 
 
-@contextmanager
-def _deadline(seconds: float | None):
-    usable = (seconds is not None and hasattr(signal, "setitimer")
-              and threading.current_thread() is threading.main_thread()
-              and signal.getitimer(signal.ITIMER_REAL)[0] == 0.0)
-    if not usable:
-        yield
-        return
+_set_async_exc = getattr(getattr(ctypes, "pythonapi", None), "PyThreadState_SetAsyncExc", None)
 
-    def on_alarm(signum, frame):
-        raise _Timeout()
 
-    previous = signal.signal(signal.SIGALRM, on_alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+class _Alarm:
+    """One armed call: the thread to interrupt, when, and how many shots were fired at it."""
+
+    __slots__ = ("thread_id", "deadline", "repeat", "shots")
+
+    def __init__(self, seconds: float) -> None:
+        self.thread_id = threading.get_ident()
+        self.deadline = time.monotonic() + seconds
+        self.repeat = max(seconds, _MIN_REPEAT)
+        self.shots = 0
+
+
+class _Watchdog:
+    """One daemon thread for every guarded call in the process: it fires :class:`_Timeout` into the thread of
+    each call past its deadline. Arming and disarming take one lock, and the thread only wakes at deadlines."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._armed: set[_Alarm] = set()
+        self._wake_at = float("inf")
+        self._thread: threading.Thread | None = None
+
+    def arm(self, seconds: float) -> _Alarm:
+        alarm = _Alarm(seconds)
+        with self._cond:
+            self._armed.add(alarm)
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._run, name="smac-hard-gym script watchdog", daemon=True)
+                self._thread.start()
+            if alarm.deadline < self._wake_at:
+                self._cond.notify()
+        return alarm
+
+    def disarm(self, alarm: _Alarm) -> None:
+        """After this returns no shot is pending or will be fired for ``alarm``. A shot fired just before may
+        still be raised while this runs: callers catch :class:`_Timeout` around it."""
+        with self._cond:
+            self._armed.discard(alarm)
+            if alarm.shots:
+                _set_async_exc(ctypes.c_ulong(alarm.thread_id), None)  # drop a shot not raised yet
+
+    def _run(self) -> None:
+        with self._cond:
+            while True:
+                now = time.monotonic()
+                for alarm in self._armed:
+                    if alarm.deadline <= now:
+                        _set_async_exc(ctypes.c_ulong(alarm.thread_id), ctypes.py_object(_Timeout))
+                        alarm.shots += 1
+                        alarm.deadline = now + alarm.repeat
+                self._wake_at = min((a.deadline for a in self._armed), default=float("inf"))
+                self._cond.wait(None if self._wake_at == float("inf") else self._wake_at - now)
+
+
+_WATCHDOG = _Watchdog() if _set_async_exc is not None else None
+
+
+def _run_limited(seconds: float | None, fn, args) -> bool:
+    """Call ``fn(*args)``; True when the watchdog interrupted it past ``seconds`` (its other exceptions
+    propagate)."""
+    if seconds is None or _WATCHDOG is None:
+        fn(*args)
+        return False
+    alarm = _WATCHDOG.arm(seconds)
     try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0.0)
-        signal.signal(signal.SIGALRM, previous)
+        try:
+            fn(*args)
+        finally:
+            _WATCHDOG.disarm(alarm)
+    except _Timeout:
+        _WATCHDOG.disarm(alarm)
+        if not alarm.shots:  # an outer guard's shot (nested guards on one thread): not ours to report
+            raise
+        return True
+    return False
 
 
 class GuardedScript(Script):
-    """Runs ``script`` under the guard; ``name``/``name_of`` are the wrapped script's."""
+    """Runs ``script`` under the guard (see the module docstring); ``name``/``name_of`` are the wrapped script's.
+
+    ``time_limit``: seconds per ``reset``/``act`` call, None for no limit.
+    """
 
     def __init__(self, script: Script, time_limit: float | None = DEFAULT_TIME_LIMIT) -> None:
         if not isinstance(script, Script):
@@ -76,6 +151,7 @@ class GuardedScript(Script):
         self.name = script.name
         self.description = script.description
         self._scratch: Commands | None = None
+        self._specs: tuple[MapSpec, MapSpec] | None = None  # (live spec, its read-only twin)
 
     def name_of(self, battle: int) -> str:
         return self.script.name_of(battle)
@@ -86,26 +162,41 @@ class GuardedScript(Script):
     def __repr__(self) -> str:
         return f"<GuardedScript {self.script!r} time_limit={self.time_limit}>"
 
+    def close(self) -> None:
+        """Close the wrapped script when it holds resources (a sandboxed script's child process)."""
+        close = getattr(self.script, "close", None)
+        if callable(close):
+            close()
+
+    def _read_only(self, view: SideView) -> SideView:
+        if self._specs is None or self._specs[0] is not view.spec:
+            self._specs = (view.spec, read_only_spec(view.spec))
+        return view.read_only(self._specs[1])
+
     def _call(self, what: str, view: SideView, fn, *args) -> None:
         name = self.script.name
         start = time.perf_counter()
         try:
-            with _deadline(self.time_limit):
-                fn(*args)
-        except _Timeout:
-            raise ScriptError(name, view.spec.name, f"{what}() ran past its time limit of {self.time_limit:g} s "
-                              "and was interrupted") from None
+            timed_out = _run_limited(self.time_limit, fn, args)
         except ScriptError:
             raise
+        except SystemExit as err:
+            raise ScriptError(name, view.spec.name, f"{what}() called sys.exit({err.code!r})") from None
         except Exception as err:
             raise ScriptError(name, view.spec.name, f"{what}() raised {type(err).__name__}: {err}") from err
+        if timed_out:
+            raise ScriptError(name, view.spec.name, f"{what}() ran past its time limit of {self.time_limit:g} s "
+                              "and was interrupted")
         elapsed = time.perf_counter() - start
         if self.time_limit is not None and elapsed > self.time_limit:
             raise ScriptError(name, view.spec.name, f"{what}() took {elapsed:.3g} s, over its time limit of "
                               f"{self.time_limit:g} s")
 
     def reset(self, view: SideView, battles: np.ndarray, rngs: list[np.random.Generator]) -> None:
-        self._call("reset", view, self.script.reset, view, battles, rngs)
+        battles = np.array(battles, dtype=np.int64)
+        battles.flags.writeable = False
+        # A copy of the list: the script may keep or draw from the generators, not replace the caller's.
+        self._call("reset", view, self.script.reset, self._read_only(view), battles, list(rngs))
 
     def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
         shape = commands.kind.shape
@@ -115,7 +206,9 @@ class GuardedScript(Script):
         scratch.clear()
         scratch.x[:] = 0.0
         scratch.y[:] = 0.0
-        self._call("act", view, self.script.act, view, scratch, active)
+        mask = np.array(active, dtype=bool)
+        mask.flags.writeable = False
+        self._call("act", view, self.script.act, self._read_only(view), scratch, mask)
         rows = np.flatnonzero(active)
         if rows.size == 0:
             return

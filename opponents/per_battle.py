@@ -41,7 +41,8 @@ __all__ = ["PerBattleScript", "BattleView", "UnitRows"]
 
 
 class UnitRows:
-    """One side's units in one battle as 1-D arrays (views into the batch state, read-only by convention)."""
+    """One side's units in one battle as 1-D arrays (views into the batch state: read-only under the guard, whose
+    state is a read-only copy; do not write them either way)."""
 
     def __init__(self, view: SideView, battle: int, which: slice) -> None:
         st = view.state
