@@ -15,8 +15,10 @@
 - a :class:`Script` object, or a list of any of these (a mixture).
 
 ``opponent_probs`` gives one probability per script of the mixture (equal by default). User scripts run inside a
-guard (:class:`GuardedScript`) that turns exceptions, overlong calls and invalid commands into a
-:class:`ScriptError` naming the script, the map and the cause.
+guard (:class:`GuardedScript`) that turns exceptions, overlong calls, ``sys.exit`` and invalid commands into a
+:class:`ScriptError` naming the script, the map and the cause, and hands them read-only copies of the state.
+``isolation="process"`` runs them in a child process instead (:class:`ProcessIsolatedScript`), which also stops
+hangs inside C calls, crashes and ``os._exit`` (see ``make_opponent``).
 """
 
 from __future__ import annotations
@@ -42,24 +44,48 @@ from smac_hard_gym.opponents.library import (
 from smac_hard_gym.opponents.loader import is_reference, load_script
 from smac_hard_gym.opponents.mixture import Mixture, check_probs
 from smac_hard_gym.opponents.per_battle import BattleView, PerBattleScript
+from smac_hard_gym.opponents.sandbox import ProcessIsolatedScript
 
 __all__ = [
     "Script", "SideView", "ScriptError", "BaseScript", "SmacScript", "BatchScript", "Frame", "Memory", "Orders",
-    "PerBattleScript", "BattleView", "Mixture", "GuardedScript", "ScriptInfo", "SCRIPTS", "POOLS",
-    "make_opponent", "make_script", "scripts_for_map", "pool_for_map", "load_script",
+    "PerBattleScript", "BattleView", "Mixture", "GuardedScript", "ProcessIsolatedScript", "ScriptInfo", "SCRIPTS",
+    "POOLS", "ISOLATION_MODES", "make_opponent", "make_script", "scripts_for_map", "pool_for_map", "load_script",
 ]
 
 OpponentSpec = str | Script | Sequence[str | Script]
 
+ISOLATION_MODES = ("none", "guard", "process")
+
+
+def check_isolation(isolation: str, guard: bool | None = None) -> str:
+    """``isolation`` if it is one of ``ISOLATION_MODES`` and agrees with ``guard``; raises ValueError otherwise."""
+    if not isinstance(isolation, str) or isolation not in ISOLATION_MODES:
+        raise ValueError(f"isolation must be one of {ISOLATION_MODES}, got {isolation!r}")
+    if guard is False and isolation == "process":
+        raise ValueError("guard=False cannot be combined with isolation='process' (sandboxed scripts are always "
+                         "checked); drop one of them")
+    return isolation
+
 
 def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = None,
-                time_limit: float | None = DEFAULT_TIME_LIMIT) -> Script:
+                time_limit: float | None = DEFAULT_TIME_LIMIT, isolation: str = "guard") -> Script:
     """One script for map ``spec``: a built-in name, a user script reference or a Script object.
 
-    ``guard`` None wraps scripts that are not built-in (user files, user objects) in :class:`GuardedScript`;
-    True or False forces it either way.
+    ``isolation`` says how scripts that are not built-in (user files, user objects) run: ``"guard"`` in-process
+    under :class:`GuardedScript`, ``"process"`` in a child process (:class:`ProcessIsolatedScript`, a reference is
+    then imported in the child only) behind the guard's command checks, ``"none"`` bare. ``guard`` True also
+    guards built-in scripts; False runs every script bare.
     """
     spec = load_map(spec)
+    isolation = check_isolation(isolation, guard)
+    if guard is False:
+        isolation = "none"
+    if isolation == "process" and (isinstance(entry, Script) and not is_builtin(entry)
+                                   or isinstance(entry, str) and entry not in SCRIPTS and entry not in MIXTURE_NAMES
+                                   and is_reference(entry)):
+        if isinstance(entry, GuardedScript):
+            entry = entry.script
+        return GuardedScript(ProcessIsolatedScript(entry, time_limit=time_limit), time_limit=None)
     if isinstance(entry, Script):
         script = entry
     elif isinstance(entry, str):
@@ -79,7 +105,7 @@ def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = N
                              "script 'path/to/file.py[:ClassName]' / 'module:Name'")
     else:
         raise TypeError(f"an opponent is a script name, a script reference or a Script object, got {entry!r}")
-    wrap = (not is_builtin(script)) if guard is None else guard
+    wrap = (not is_builtin(script) and isolation != "none") if guard is None else guard
     if wrap and not isinstance(script, GuardedScript):
         script = GuardedScript(script, time_limit=time_limit)
     return script
@@ -87,22 +113,37 @@ def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = N
 
 def make_opponent(spec: MapSpec | str, opponent: OpponentSpec = "base",
                   opponent_probs: Sequence[float] | np.ndarray | None = None, *, guard: bool | None = None,
-                  time_limit: float | None = DEFAULT_TIME_LIMIT) -> Script:
+                  time_limit: float | None = DEFAULT_TIME_LIMIT, isolation: str = "guard") -> Script:
     """The opponent for map ``spec`` (see the module docstring for what ``opponent`` may be).
 
     A single script comes back as itself; ``"default"``, ``"blackbox"`` and lists come back as a :class:`Mixture`
     named after the pool (or ``"mixture"``) whose ``name_of(b)`` names the script battle b plays. Raises
     ValueError for unknown names, scripts that do not play the map, and invalid ``opponent_probs`` (one per script,
     finite, non-negative, summing to 1).
+
+    How user scripts (files, references, Script objects that are not built-in) run is this function's
+    ``isolation``, the single entry point for it (built-in scripts are trusted and always run in-process, zero
+    copy):
+
+    - ``"guard"`` (default): in-process under :class:`GuardedScript`: read-only copies of the state, checked
+      commands, ``time_limit`` seconds per call on any thread. A hang inside one C call or a crash of the
+      interpreter is beyond it.
+    - ``"process"``: in a child process (:class:`ProcessIsolatedScript`) killed at ``time_limit``; hangs in C
+      calls, segfaults and ``os._exit`` become a :class:`ScriptError` and the next call starts a new child. Costs
+      a process start and a pickled round trip per call.
+    - ``"none"``: bare, for code you trust (same as ``guard=False``).
+
+    ``guard=True`` additionally guards built-in scripts; ``guard=False`` runs everything bare.
     """
     spec = load_map(spec)
+    check_isolation(isolation, guard)
     where = f" (map {spec.name!r})"
     if isinstance(opponent, str) and opponent in MIXTURE_NAMES:
         names = pool_for_map(spec, opponent)
         if not names:
             raise ValueError(f"map {spec.name!r} has an empty {opponent!r} pool")
         probs = check_probs(opponent_probs, names, where)
-        return Mixture([make_script(spec, n, guard, time_limit) for n in names], probs, name=opponent)
+        return Mixture([make_script(spec, n, guard, time_limit, isolation) for n in names], probs, name=opponent)
     if isinstance(opponent, (str, Script)):
         entries: list[str | Script] = [opponent]
     elif isinstance(opponent, Sequence) and not isinstance(opponent, (bytes, bytearray)):
@@ -112,7 +153,7 @@ def make_opponent(spec: MapSpec | str, opponent: OpponentSpec = "base",
     else:
         raise TypeError(f"opponent must be a name, a script reference, a Script or a list of them{where}, "
                         f"got {opponent!r}")
-    scripts = [make_script(spec, e, guard, time_limit) for e in entries]
+    scripts = [make_script(spec, e, guard, time_limit, isolation) for e in entries]
     probs = check_probs(opponent_probs, [s.name for s in scripts], where)
     if len(scripts) == 1:
         return scripts[0]
