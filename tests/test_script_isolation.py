@@ -228,7 +228,11 @@ def test_an_endless_script_is_interrupted_on_any_thread(thread, swallow):
 
 def test_the_users_interval_timer_is_left_alone():
     fired = []
-    previous = signal.signal(signal.SIGALRM, lambda signum, frame: fired.append(signum))
+
+    def handler(signum, frame):
+        fired.append(signum)
+
+    previous = signal.signal(signal.SIGALRM, handler)
     signal.setitimer(signal.ITIMER_REAL, 100.0)
     try:
         engine, view, rngs, commands = _setup()
@@ -237,7 +241,7 @@ def test_the_users_interval_timer_is_left_alone():
             script.act(view, commands, np.ones(2, dtype=bool))
         remaining, interval = signal.getitimer(signal.ITIMER_REAL)
         assert 90.0 < remaining <= 100.0 and interval == 0.0
-        assert signal.getsignal(signal.SIGALRM) is not signal.SIG_DFL and not fired
+        assert signal.getsignal(signal.SIGALRM) is handler and not fired
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         signal.signal(signal.SIGALRM, previous)
