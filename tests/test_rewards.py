@@ -111,7 +111,7 @@ def test_terminal_bonuses_draws_and_sparse_rewards():
 
 
 class Harmless(Script):
-    """Test opponent whose weapons never come off cooldown."""
+    """Test opponent whose weapons never come off cooldown (it writes the live state, so it must run unguarded)."""
 
     name = "harmless"
 
@@ -130,6 +130,7 @@ def _focus_fire(avail):
 
 def test_perfect_3m_win_in_the_engine_sums_to_20():
     core = TwoPlayerCore("3m", 1, opponent=Harmless(), seed=0)
+    core.opponent = Harmless()  # bare: the guard hands user scripts a read-only copy, and this one writes the state
     total = 0.0
     for _ in range(core.spec.episode_limit):
         result = core.step(_focus_fire(core.avail_actions()))
