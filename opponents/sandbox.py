@@ -241,25 +241,30 @@ class ProcessIsolatedScript(Script):
 
     def _receive(self, what: str, map_name: str, timeout: float | None) -> tuple:
         """The child's next message; kills it and raises ScriptError when it hangs or dies."""
-        conn, process = self._conn, self._process
         try:
-            if conn.poll(timeout):
-                return conn.recv()
+            if self._conn.poll(timeout):
+                return self._conn.recv()
             cause = f"{what}() timed out after {timeout:g} s; its process was killed"
         except (EOFError, OSError):
-            process.join(_EXIT_WAIT)
-            code = process.exitcode
-            if code is not None and code < 0:
-                cause = f"{what}(): its process died from signal {signal.Signals(-code).name} ({code})"
-            else:
-                cause = f"{what}(): its process exited with code {code}"
+            cause = self._death(f"{what}():")
         self.close()
         raise ScriptError(self.name, map_name, cause)
 
+    def _death(self, when: str) -> str:
+        self._process.join(_EXIT_WAIT)
+        code = self._process.exitcode
+        if code is not None and code < 0:
+            return f"{when} its process died from signal {signal.Signals(-code).name} ({code})"
+        return f"{when} its process exited with code {code}"
+
     def _call(self, what: str, view: SideView, rows: np.ndarray, extra: Any) -> tuple:
         map_name = view.spec.name
-        if self._process is None or not self._process.is_alive():
+        if self._process is not None and not self._process.is_alive():
+            # Killed from outside between calls: its memory is gone, so say so rather than restart silently.
+            cause = self._death(f"before {what}():")
             self.close()
+            raise ScriptError(self.name, map_name, cause)
+        if self._process is None:
             self._start(map_name)
         spec = None if self._child_spec is view.spec else view.spec
         request = (what, spec, view.side, view.own, view.enemy, tuple(view.state), view.episode_step, rows, extra)

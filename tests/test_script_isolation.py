@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from smac_hard_gym.engine import BattleEngine
-from smac_hard_gym.engine.state import BLUE, CMD_STOP, Commands
+from smac_hard_gym.engine.state import BLUE, CMD_ATTACK, CMD_STOP, Commands
 from smac_hard_gym.opponents import (
     GuardedScript,
     PerBattleScript,
@@ -411,6 +411,22 @@ def test_sandbox_failures_become_script_errors_and_the_next_reset_works(sandboxe
             assert script.script.pid is None and _pid_gone(first)
         script.reset(view, np.arange(2), rngs)  # a fresh child when the old one is gone
         assert script.script.pid is not None
+    finally:
+        script.close()
+
+
+def test_a_child_killed_between_calls_is_reported_then_replaced(sandboxed):
+    engine, view, rngs, commands = _setup()
+    script = make_opponent("3m", sandboxed("Good"), isolation="process", time_limit=LIMIT)
+    try:
+        script.reset(view, np.arange(2), rngs)
+        os.kill(script.script.pid, signal.SIGKILL)
+        # "before act(): ..." once the death is seen, "act(): ..." when the kill lands as the request is sent.
+        with pytest.raises(ScriptError, match=r"act\(\): its process died from signal SIGKILL"):
+            script.act(view, commands, np.ones(2, dtype=bool))
+        script.reset(view, np.arange(2), rngs)
+        script.act(view, commands, np.ones(2, dtype=bool))
+        assert (commands.kind[:, 3:] == CMD_ATTACK).all()
     finally:
         script.close()
 
