@@ -28,6 +28,7 @@ Python implementations without ``ctypes.pythonapi`` (not CPython) the limit is o
 from __future__ import annotations
 
 import ctypes
+import os
 import threading
 import time
 
@@ -75,6 +76,10 @@ class _Watchdog:
     each call past its deadline. Arming and disarming take one lock, and the thread only wakes at deadlines."""
 
     def __init__(self) -> None:
+        self._after_fork()
+
+    def _after_fork(self) -> None:
+        # A forked child has no watchdog thread and may have copied the lock while held: start afresh.
         self._cond = threading.Condition()
         self._armed: set[_Alarm] = set()
         self._wake_at = float("inf")
@@ -113,6 +118,8 @@ class _Watchdog:
 
 
 _WATCHDOG = _Watchdog() if _set_async_exc is not None else None
+if _WATCHDOG is not None and hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_WATCHDOG._after_fork)
 
 
 def _run_limited(seconds: float | None, fn, args) -> bool:
