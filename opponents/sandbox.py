@@ -35,6 +35,7 @@ import numpy as np
 from smac_hard_gym.engine.state import BattleState, Commands
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.opponents.api import Script, ScriptError, SideView
+from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT
 
 __all__ = ["ProcessIsolatedScript", "DEFAULT_START_TIMEOUT"]
 
@@ -69,7 +70,8 @@ def _load(entry: bytes) -> Script:
 
 
 def _child_main(conn: Connection, entry: bytes) -> None:
-    """The child's loop: load the script, then answer ``reset``/``act`` requests until told to stop."""
+    """The child's loop: load the script, then answer ``reset``/``act`` requests until the host closes the pipe
+    (or kills us)."""
     _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the host's to handle; it kills us
     try:
@@ -83,9 +85,7 @@ def _child_main(conn: Connection, entry: bytes) -> None:
     while True:
         try:
             request = conn.recv()
-        except (EOFError, OSError):
-            return
-        if request[0] == "close":
+        except (EOFError, OSError):  # the host closed the pipe
             return
         what, new_spec, side, own, enemy, state, step, rows, extra = request
         spec = new_spec if new_spec is not None else spec
@@ -106,6 +106,7 @@ def _child_main(conn: Connection, entry: bytes) -> None:
                 active.flags.writeable = False
                 script.act(view, commands, active)
                 touched, reply = rows, tuple(commands)
+            states = {int(b): rngs[b].bit_generator.state for b in touched if rngs[b] is not None}
         except SystemExit as err:
             conn.send(("failed", f"called sys.exit({err.code!r})", ""))
             continue
@@ -113,7 +114,6 @@ def _child_main(conn: Connection, entry: bytes) -> None:
             text = "".join(traceback.format_exception(type(err), err, err.__traceback__))
             conn.send(("failed", f"raised {type(err).__name__}: {err}", text))
             continue
-        states = {int(b): rngs[b].bit_generator.state for b in touched if rngs[b] is not None}
         conn.send(("ok", reply, states))
 
 
@@ -173,7 +173,7 @@ class ProcessIsolatedScript(Script):
     :meth:`close` to stop the child early.
     """
 
-    def __init__(self, entry: str | Script, time_limit: float | None = 5.0, *,
+    def __init__(self, entry: str | Script, time_limit: float | None = DEFAULT_TIME_LIMIT, *,
                  start_timeout: float = DEFAULT_START_TIMEOUT, start_method: str | None = None) -> None:
         for label, value in (("time_limit", time_limit), ("start_timeout", start_timeout)):
             if label == "time_limit" and value is None:
