@@ -72,7 +72,8 @@ def validate_actions(actions: Any, shape: tuple[int, ...], n_actions: int, who: 
         try:
             arr = np.asarray(actions, dtype=object)
         except (ValueError, TypeError):  # ragged nesting numpy cannot lay out
-            raise InvalidActionError(f"{who} actions must have shape {shape}, got {actions!r}") from None
+            raise InvalidActionError(f"{who} actions must have shape {tuple(shape)} ({_axes(shape)}), got the "
+                                     f"ragged {actions!r}") from None
     if arr.shape != tuple(shape):
         raise InvalidActionError(f"{who} actions must have shape {tuple(shape)} ({_axes(shape)}), got {arr.shape}")
     kind = arr.dtype.kind
@@ -125,7 +126,7 @@ def _axes(shape: tuple[int, ...]) -> str:
 def _agent(index: tuple[int, ...], shape: tuple[int, ...], who: str) -> str:
     """The agent at ``index``: "red agent 2", or "battle 3, red agent 2" in a batch."""
     where = f"battle {index[0]}, " if len(shape) == 2 and shape[0] > 1 else ""
-    return f"{where}{who} agent {index[-1]}".strip()
+    return f"{where}{who} agent {index[-1]}"
 
 
 def _shown(value: Any) -> str:
