@@ -26,6 +26,7 @@ messages name the value as it was passed. A rejected step changes nothing.
 from __future__ import annotations
 
 import math
+import operator
 from typing import Any
 
 import numpy as np
@@ -59,7 +60,8 @@ class ResetNeededError(ResetNeeded, RuntimeError):
 def validate_actions(actions: Any, shape: tuple[int, ...], n_actions: int, who: str = "red") -> np.ndarray:
     """``actions`` as a fresh int64 array of ``shape`` ((n_agents,) or (battles, n_agents)), in ``0..n_actions-1``.
 
-    Accepts Python and NumPy integers and floats with an integral value. Raises ``TypeError`` for anything else
+    Accepts Python and NumPy integers (and other ``__index__`` types, such as torch tensors) and floats with an
+    integral value. Raises ``TypeError`` for anything else
     (bool, str, complex, None, nested sequences, fractional floats) and :class:`InvalidActionError` for a wrong
     shape or a value out of range (``nan``, ``inf`` and ints beyond int64 included); ``who`` ("red", "blue")
     starts the agent's name in the message. Availability is :func:`check_actions`'s job.
@@ -103,10 +105,16 @@ def _validate_objects(arr: np.ndarray, shape: tuple[int, ...], n_actions: int, w
             pass
     values = np.empty(len(flat), dtype=np.int64)
     for k, v in enumerate(flat):
-        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)):
+        if isinstance(v, (bool, np.bool_)):
             _raise_type(arr, _flag(arr, k), shape, n_actions, who)
-        if isinstance(v, (float, np.floating)) and math.isfinite(v) and v != math.floor(v):
-            _raise_type(arr, _flag(arr, k), shape, n_actions, who)
+        if isinstance(v, (float, np.floating)):
+            if math.isfinite(v) and v != math.floor(v):
+                _raise_type(arr, _flag(arr, k), shape, n_actions, who)
+        elif not isinstance(v, (int, np.integer)):
+            try:  # other integer types (a 0-d torch int tensor) say so through __index__
+                v = operator.index(v)
+            except TypeError:
+                _raise_type(arr, _flag(arr, k), shape, n_actions, who)
         if not 0 <= v < n_actions:  # also false for nan
             _raise_range(arr, _flag(arr, k), shape, n_actions, who)
         values[k] = int(v)

@@ -279,3 +279,13 @@ def test_actions_are_ints_named_as_passed():
     with pytest.raises(InvalidActionError, match=f"action {2**70} is out of range"):
         env.step([1, 1, 2**70])
     env.step([1.0, 1, np.int8(1)])  # integral floats and numpy ints are actions
+
+
+def test_torch_actions_as_pymarl_passes_them():
+    torch = pytest.importorskip("torch")
+    env = StarCraft2Env(map_name="3m")
+    env.reset()
+    env.step(torch.tensor([1, 1, 1]))  # pymarl: env.step(actions[0]) with a tensor row
+    env.step([torch.tensor(1)] * 3)  # 0-d int tensors are integers (__index__)
+    with pytest.raises(TypeError, match="is of type Tensor"):
+        env.step([torch.tensor(1.5), 1, 1])
