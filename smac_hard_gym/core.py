@@ -132,7 +132,7 @@ class TwoPlayerCore:
     def __init__(self, map_name: str | MapSpec, batch_size: int = 1, *, mode: str = "script",
                  opponent: Any = "smac", opponent_probs: Sequence[float] | None = None, backend: str = "native",
                  step_mul: int = 8, options: SmacOptions | None = None, seed: int | None = None,
-                 backend_options: dict | None = None) -> None:
+                 backend_options: dict | None = None, opponent_isolation: str = "guard") -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if not isinstance(batch_size, (int, np.integer)) or isinstance(batch_size, bool) or batch_size < 1:
@@ -150,7 +150,7 @@ class TwoPlayerCore:
 
         self.opponent: Script | None = None
         if mode == "script":
-            self.opponent = make_opponent(self.spec, opponent, opponent_probs)
+            self.opponent = make_opponent(self.spec, opponent, opponent_probs, isolation=opponent_isolation)
         elif opponent not in (None, "smac") or opponent_probs is not None:
             raise ValueError(f"mode 'self-play' takes blue's actions from step(); opponent={opponent!r} and "
                              f"opponent_probs={opponent_probs!r} apply to mode 'script' only")

@@ -34,8 +34,12 @@ RENDER_FPS = 8  # frames per second when shown: 4x the Normal-speed game time of
 OBS_LOW = -1.0  # SMAC features are ratios in [-1, 1] (offsets / sight range, health / max, one-hots); see _state_high
 
 
-def make_options(options: SmacOptions | dict | None, smac_options: dict[str, Any]) -> SmacOptions:
-    """SMAC's observation and reward options from an ``options`` object or dict plus keyword overrides."""
+def make_options(options: SmacOptions | dict | None, smac_options: dict[str, Any],
+                 env_keywords: Sequence[str] = ()) -> SmacOptions:
+    """SMAC's observation and reward options from an ``options`` object or dict plus keyword overrides.
+
+    An unknown keyword is a TypeError that lists every keyword the env takes: ``env_keywords`` (its own) and SMAC's.
+    """
     if isinstance(options, SmacOptions):
         base = {name: getattr(options, name) for name in options.__dataclass_fields__}
     elif options is None:
@@ -45,7 +49,20 @@ def make_options(options: SmacOptions | dict | None, smac_options: dict[str, Any
     else:
         raise TypeError(f"options must be a SmacOptions, a dict of SMAC options or None, got {options!r}")
     base.update(smac_options)
-    return SmacOptions.from_kwargs(**base)
+    known = set(SmacOptions.__dataclass_fields__)
+    unknown = sorted(set(base) - known)
+    if unknown:
+        raise TypeError(f"unknown keyword(s) {unknown}; the env takes {sorted(env_keywords)} and SMAC's options "
+                        f"{sorted(known)}")
+    return SmacOptions(**base)
+
+
+def keywords_of(function: Any) -> list[str]:
+    """The keyword parameters of ``function`` (an env's ``__init__``), for error messages."""
+    import inspect
+
+    return [name for name, p in inspect.signature(function).parameters.items()
+            if name != "self" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
 
 
 def check_invalid_action(policy: str) -> str:
@@ -206,7 +223,10 @@ class SMACHardEnv(gym.Env):
         name, a user script reference, a Script, or a list of them) and ``opponent_probs``; ``obs_mode``;
         ``invalid_action`` (``"noop"``, the default, or ``"raise"``); ``render_mode`` (``"rgb_array"`` or ``"human"``);
         ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a :class:`~smac_hard_gym.features.SmacOptions`
-        or dict) and any SMAC observation/reward option as a keyword (``reward_sparse=True``, ...).
+        or dict) and any SMAC observation/reward option as a keyword (``reward_sparse=True``, ...);
+        ``opponent_isolation`` (``"guard"``, the default: user scripts run in-process on a read-only copy of the state
+        under a time limit; ``"process"``: in a child process that a hang, crash or exit cannot take down; ``"none"``;
+        docs/script_isolation.md).
 
     Version History
         v0: first version.
@@ -218,7 +238,7 @@ class SMACHardEnv(gym.Env):
                  opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
                  invalid_action: str = "noop", render_mode: str | None = None, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
-                 **smac_options: Any) -> None:
+                 opponent_isolation: str = "guard", **smac_options: Any) -> None:
         check_invalid_action(invalid_action)
         if obs_mode not in OBS_MODES:
             raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
@@ -227,8 +247,9 @@ class SMACHardEnv(gym.Env):
         self.render_mode = check_render_mode(render_mode)
         self.invalid_action = invalid_action
         self.core = TwoPlayerCore(map_name, 1, opponent=opponent, opponent_probs=opponent_probs, backend=backend,
-                                  step_mul=step_mul, options=make_options(options, smac_options),
-                                  backend_options=backend_options)
+                                  step_mul=step_mul,
+                                  options=make_options(options, smac_options, keywords_of(SMACHardEnv.__init__)),
+                                  backend_options=backend_options, opponent_isolation=opponent_isolation)
         self.view = JointView(self.core, obs_mode)
         self.map_name = self.core.spec.name
         self.obs_mode = obs_mode

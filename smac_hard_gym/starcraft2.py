@@ -101,6 +101,7 @@ class StarCraft2Env:
         strategy_prob: Sequence[float] | None = None,
         backend: str = "native",
         backend_options: dict | None = None,
+        opponent_isolation: str = "guard",
     ) -> None:
         if mode not in _MODE_ALIASES:
             raise ValueError(f"mode must be one of {sorted(_MODE_ALIASES)}, got {mode!r}")
@@ -140,7 +141,7 @@ class StarCraft2Env:
         self._core = TwoPlayerCore(
             map_name, 1, mode=self.mode, opponent=opponent if self.mode == "script" else None,
             opponent_probs=opponent_probs, backend=backend, step_mul=step_mul, options=options, seed=self._seed,
-            backend_options=backend_options,
+            backend_options=backend_options, opponent_isolation=opponent_isolation,
         )
         red = self._core.features[RED]
         spec = self._core.spec

@@ -58,6 +58,9 @@ MASK_KEY = "action_mask"
 RESTART_KEY = "worker_restarted"
 
 
+COLD_START_TIMEOUT = 600.0  # seconds for a worker's first answer when it must compile the engine's kernels
+WARM_START_TIMEOUT = 120.0  # ... when numba's cache holds them (a hang before the first answer is caught sooner)
+
 class WorkerError(RuntimeError):
     """A worker process died, hung past the timeout, or could not be built."""
 
@@ -375,10 +378,11 @@ class SubprocVectorEnv(VectorEnv):
         theirs. ``start_method``: ``"forkserver"`` (default where available), ``"spawn"`` or ``"fork"`` (fast,
         but unsafe once the parent runs threads: torch, numba). ``timeout``: seconds a worker may take to answer
         a reset or step before it counts as hung; ``start_timeout``: seconds to build, and to answer until its
-        first step (a cold numba cache compiles the engine on first use). ``on_worker_error``: ``"raise"`` or
-        ``"restart"``; ``max_failures``: a worker that fails more often than this without a good step in between
-        raises :class:`WorkerError` even under ``"restart"`` (a worker that can never run is not restarted
-        forever). ``worker_threads``: numba/BLAS threads per worker.
+        first step; by default 600 when numba's cache does not hold the engine yet (the first use compiles it, tens of
+        seconds per worker on a busy machine), else 120 (enough to launch StarCraft II for the sc2 backend).
+        ``on_worker_error``: ``"raise"`` or ``"restart"``; ``max_failures``: a worker that fails more often than
+        this without a good step in between raises :class:`WorkerError` even under ``"restart"`` (a worker that can
+        never run is not restarted forever). ``worker_threads``: numba/BLAS threads per worker.
 
     Battle ``i`` of the batch is battle ``i - start`` of the worker owning rows ``start..stop-1``; ``reset(seed=s)``
     gives it the seed ``s + i``, so a subprocess batch reproduces a native batch of the same size.
@@ -386,7 +390,7 @@ class SubprocVectorEnv(VectorEnv):
 
     def __init__(self, factories: Sequence[Callable[[], Any]], *,
                  autoreset_mode: AutoresetMode | str | None = None, start_method: str | None = None,
-                 timeout: float = 60.0, start_timeout: float = 600.0, on_worker_error: str = "raise",
+                 timeout: float = 60.0, start_timeout: float | None = None, on_worker_error: str = "raise",
                  max_failures: int = 3, worker_threads: int = 1) -> None:
         factories = list(factories)
         if not factories or not all(callable(f) for f in factories):
@@ -397,6 +401,10 @@ class SubprocVectorEnv(VectorEnv):
             start_method = "forkserver" if "forkserver" in START_METHODS else "spawn"
         if start_method not in START_METHODS:
             raise ValueError(f"start_method must be one of {START_METHODS} on this platform, got {start_method!r}")
+        if start_timeout is None:
+            from smac_hard_gym.kernel_cache import kernels_cached
+
+            start_timeout = COLD_START_TIMEOUT if not kernels_cached() else WARM_START_TIMEOUT
         for name, value in (("timeout", timeout), ("start_timeout", start_timeout)):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
                 raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")

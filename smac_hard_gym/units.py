@@ -268,3 +268,4 @@ def build_stats(units: tuple[UnitSpec, ...] = UNITS) -> np.ndarray:
 
 
 STATS: np.ndarray = build_stats()
+STATS.flags.writeable = False  # shared by every battle and script: a script in the process must not rewrite it

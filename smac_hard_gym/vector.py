@@ -23,7 +23,7 @@ from smac_hard_gym.autoreset import parse_autoreset_mode
 from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.features import RED_WON, SmacOptions
-from smac_hard_gym.gym_env import RENDER_FPS, JointView, check_invalid_action, make_options
+from smac_hard_gym.gym_env import RENDER_FPS, JointView, check_invalid_action, keywords_of, make_options
 
 __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 
@@ -69,7 +69,7 @@ class NativeVectorEnv(VectorEnv):
                  invalid_action: str = "noop", render_mode: str | None = None,
                  render_battles: int | Sequence[int] | str = 0, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
-                 **smac_options: Any) -> None:
+                 opponent_isolation: str = "guard", **smac_options: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
         check_invalid_action(invalid_action)
@@ -80,8 +80,9 @@ class NativeVectorEnv(VectorEnv):
         self.num_envs = int(num_envs)
         self.invalid_action = invalid_action
         self.core = TwoPlayerCore(map_name, self.num_envs, opponent=opponent, opponent_probs=opponent_probs,
-                                  backend=backend, step_mul=step_mul, options=make_options(options, smac_options),
-                                  backend_options=backend_options)
+                                  backend=backend, step_mul=step_mul,
+                                  options=make_options(options, smac_options, keywords_of(NativeVectorEnv.__init__)),
+                                  backend_options=backend_options, opponent_isolation=opponent_isolation)
         self.view = JointView(self.core, obs_mode)
         self.map_name = self.core.spec.name
         self.episode_limit = self.core.spec.episode_limit

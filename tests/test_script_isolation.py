@@ -10,6 +10,7 @@ import signal
 import textwrap
 import threading
 import time
+from pathlib import Path
 
 import cloudpickle
 import numpy as np
@@ -471,3 +472,25 @@ def test_a_sandboxed_script_inside_a_vector_env_worker(sandboxed):
         env.reset(seed=1)  # the worker survived and starts a fresh child
     finally:
         env.close()
+
+
+def test_envs_take_opponent_isolation_and_name_every_keyword_they_take():
+    import gymnasium as gym
+
+    import smac_hard_gym  # noqa: F401  (registers the ids)
+    from smac_hard_gym import StarCraft2Env
+
+    script = str(Path(__file__).resolve().parents[1] / "examples" / "per_battle_script.py")
+    env = gym.make("SMACHard-3m-v0", opponent=script, opponent_isolation="process")
+    try:
+        env.reset(seed=0)
+        env.step(env.action_space.sample())
+        opponent = env.unwrapped.core.opponent  # the guard's command checks around the sandbox
+        assert isinstance(opponent.script, ProcessIsolatedScript)
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="isolation"):
+        StarCraft2Env(map_name="3m", opponent=script, opponent_isolation="sandbox")
+    with pytest.raises(TypeError, match="opponent_isolation") as err:
+        gym.make("SMACHard-3m-v0", oponent="base")
+    assert "oponent" in str(err.value) and "reward_sparse" in str(err.value)

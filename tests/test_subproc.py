@@ -291,3 +291,26 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="autoreset in mode 'NextStep' but autoreset_mode='SameStep'"):
         SubprocVectorEnv([functools.partial(gym.vector.SyncVectorEnv, [TickEnv])], autoreset_mode="SameStep",
                          start_method="fork")
+
+
+def test_a_hang_before_the_first_answer_is_caught_in_minutes_once_kernels_are_cached():
+    from smac_hard_gym.kernel_cache import kernels_cached
+    from smac_hard_gym.subproc import COLD_START_TIMEOUT, WARM_START_TIMEOUT
+
+    native = NativeVectorEnv("3m", 16, autoreset_mode="SameStep")  # compiles (or loads) the kernels here
+    native.reset(seed=0)
+    native.step(np.ones((16, 3), dtype=np.int64))
+    native.close()
+    assert kernels_cached() is True
+    env = make_subproc_env("3m", num_workers=1, envs_per_worker=1, autoreset_mode="SameStep")
+    try:
+        assert env.start_timeout == WARM_START_TIMEOUT < COLD_START_TIMEOUT
+    finally:
+        env.close()
+
+
+def test_the_unit_table_cannot_be_rewritten():
+    from smac_hard_gym.units import STATS
+
+    with pytest.raises(ValueError, match="read-only"):
+        STATS[0, 0] = 1.0
