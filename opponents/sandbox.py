@@ -203,7 +203,13 @@ class ProcessIsolatedScript(Script):
         try:
             self._start()
         except ScriptError as err:
-            raise ValueError(f"user script {self.name!r} could not start in a child process: {err.cause}") from None
+            hint = ""
+            if "exited with code" in err.cause and self.start_method != "fork":
+                # multiprocessing re-imports the parent's main module in the child: an unguarded top level reruns
+                hint = ("; if this runs from a script, guard its top level with `if __name__ == \"__main__\":` "
+                        "(the child process imports the main module again)")
+            raise ValueError(f"user script {self.name!r} could not start in a child process: {err.cause}{hint}") \
+                from None
 
     def __reduce__(self):
         # A copy (e.g. in a vector env worker) starts a child of its own.
