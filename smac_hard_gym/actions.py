@@ -66,6 +66,12 @@ def validate_actions(actions: Any, shape: tuple[int, ...], n_actions: int, who: 
     shape or a value out of range (``nan``, ``inf`` and ints beyond int64 included); ``who`` ("red", "blue")
     starts the agent's name in the message. Availability is :func:`check_actions`'s job.
     """
+    if (type(actions) is list and len(shape) == 1 and len(actions) == shape[0]
+            and all(type(a) is int and 0 <= a < n_actions for a in actions)):
+        return np.array(actions, dtype=np.int64)  # pymarl's usual call, a list of legal Python ints: no detour
+    if (type(actions) is np.ndarray and actions.dtype == np.int64 and actions.shape == tuple(shape)
+            and actions.size and actions.min() >= 0 and actions.max() < n_actions):
+        return actions.copy()  # an env's already-checked array, checked again by the core: two reductions
     if isinstance(actions, (str, bytes, dict, set)) or actions is None:
         raise TypeError(f"{who} actions must be a sequence or array of ints of shape {shape}, got {actions!r}")
     if isinstance(actions, np.ndarray) and actions.dtype.kind in "iuf":
