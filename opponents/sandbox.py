@@ -33,6 +33,7 @@ import cloudpickle
 import numpy as np
 
 from smac_hard_gym.engine.state import BattleState, Commands
+from smac_hard_gym.lifetime import die_with_parent
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.opponents.api import Script, ScriptError, SideView
 from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT
@@ -41,17 +42,6 @@ __all__ = ["ProcessIsolatedScript", "DEFAULT_START_TIMEOUT"]
 
 DEFAULT_START_TIMEOUT = 60.0  # seconds for a child to start and load its script
 _EXIT_WAIT = 2.0  # seconds to wait for a dead child's exit code
-
-
-def _die_with_parent() -> None:
-    """Linux: ask the kernel to SIGKILL this process when its parent dies."""
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
 
 
 def _read_only(arrays: Any) -> None:
@@ -72,7 +62,7 @@ def _load(entry: bytes) -> Script:
 def _child_main(conn: Connection, entry: bytes) -> None:
     """The child's loop: load the script, then answer ``reset``/``act`` requests until the host closes the pipe
     (or kills us)."""
-    _die_with_parent()
+    die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the host's to handle; it kills us
     try:
         script = _load(entry)

@@ -29,7 +29,6 @@ from __future__ import annotations
 import functools
 import multiprocessing as mp
 import os
-import signal
 import sys
 import time
 import traceback
@@ -48,6 +47,7 @@ from gymnasium.vector.utils import batch_space
 
 from smac_hard_gym.actions import InvalidActionError, ResetNeededError, validate_actions
 from smac_hard_gym.autoreset import AUTORESET_NAMES, parse_autoreset_mode
+from smac_hard_gym.lifetime import die_with_parent
 
 __all__ = ["SubprocVectorEnv", "BatchWorker", "WorkerError", "make_subproc_env", "concat_infos",
            "ON_WORKER_ERROR", "START_METHODS"]
@@ -226,17 +226,6 @@ def _limit_threads(threads: int) -> None:
         sys.modules["torch"].set_num_threads(threads)
 
 
-def _die_with_parent() -> None:
-    """Linux: ask the kernel to SIGKILL this process when its parent dies."""
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-
-
 def _pack_error(err: BaseException) -> tuple[bytes | None, str]:
     text = "".join(traceback.format_exception(type(err), err, err.__traceback__))
     try:
@@ -248,7 +237,7 @@ def _pack_error(err: BaseException) -> tuple[bytes | None, str]:
 def _worker_main(conn: Connection, parent_end: Connection, factory_bytes: bytes, autoreset_mode: Any,
                  threads: int) -> None:
     parent_end.close()
-    _die_with_parent()
+    die_with_parent()
     _limit_threads(threads)
     parent = os.getppid()
     block: _SharedBlock | None = None

@@ -6,13 +6,14 @@ from __future__ import annotations
 import os
 import platform
 import subprocess
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from smac_hard_gym.lifetime import die_with_parent  # noqa: F401  (re-exported: the benchmark probes use it)
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -165,17 +166,6 @@ class CpuMeter:
         steal = (steal1 - steal0) / wall
         self.result = {"busy_cores": round(busy, 2), "our_cores": round(ours, 2),
                        "other_cores": round(max(0.0, busy - ours), 2), "stolen_cores": round(steal, 2)}
-
-
-def die_with_parent() -> None:
-    """In a child before exec (Linux): the kernel kills it if this process dies first, so no probe outlives us."""
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, 9)  # PR_SET_PDEATHSIG, SIGKILL
-        except (OSError, AttributeError):
-            pass
 
 
 def peak_rss_of(pid: int) -> int | None:
