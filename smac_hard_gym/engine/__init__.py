@@ -92,7 +92,8 @@ class BattleEngine:
         self._sort_key = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
         # Targeting's snapshot of every unit's target at the start of a loop ("who is attacking me").
         self._engaged = np.zeros((self.batch_size, self.n_units), dtype=np.int32)
-        # Movement's snapshot of positions at the start of the phase (units move simultaneously).
+        # Movement's snapshot of positions at the start of the phase (units move simultaneously); separation then
+        # reuses the two arrays to sum its pushes.
         self._x0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
         self._y0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
         self._next_battle = np.zeros(1, dtype=np.int64)  # the parallel kernel's shared work counter

@@ -673,17 +673,23 @@ def _uniform(rng):
 
 
 @inline
+def _target_in_reach(i, alive0, x, y, target, slot_stats):
+    """Unit i's target if both were alive when the loop began and it is within i's weapon range, else NO_UNIT."""
+    j = target[i]
+    if not alive0[i] or j < 0 or not alive0[j]:
+        return NO_UNIT
+    if not _within(x[i], y[i], x[j], y[j], slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
+        return NO_UNIT
+    return j
+
+
+@inline
 def _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
              fired_at, burst, slot_stats, rng, jitter_lo, jitter_hi):
     heals = False
     for i in range(alive0.shape[0]):
-        if not alive0[i]:
-            continue
-        j = target[i]
-        if j < 0 or not alive0[j]:
-            continue
-        if not _within(x[i], y[i], x[j], y[j],
-                       slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
+        j = _target_in_reach(i, alive0, x, y, target, slot_stats)
+        if j < 0:
             continue
         weapon = slot_stats[i, _WEAPON]
         if weapon == WEAPON_HEAL:
@@ -706,10 +712,9 @@ def _attacks(side, alive0, x, y, health, shield, energy, cooldown, shield_wait, 
     # after red fired: the same fight went differently for the two sides).
     if heals:
         for i in range(alive0.shape[0]):
-            if alive0[i] and slot_stats[i, _WEAPON] == WEAPON_HEAL:
-                j = target[i]
-                reach = slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + (slot_stats[j, _RADIUS] if j >= 0 else 0.0)
-                if j >= 0 and alive0[j] and health[j] > 0.0 and _within(x[i], y[i], x[j], y[j], reach):
+            if slot_stats[i, _WEAPON] == WEAPON_HEAL:
+                j = _target_in_reach(i, alive0, x, y, target, slot_stats)
+                if j >= 0 and health[j] > 0.0:
                     _heal(i, j, health, energy, fired_at, slot_stats)
 
 
