@@ -91,12 +91,12 @@ def validate_actions(actions: Any, shape: tuple[int, ...], n_actions: int, who: 
         finite = np.isfinite(arr)
         fraction = finite & (arr != np.floor(np.where(finite, arr, 0)))
         if fraction.any():
-            _raise_type(arr, fraction, shape, n_actions, who)
+            _raise_type(arr, _first(fraction), shape, n_actions, who)
         out_of_range = ~finite | (arr < 0) | (arr >= n_actions)
     else:
         return _validate_objects(arr, shape, n_actions, who)
     if out_of_range.any():
-        _raise_range(arr, out_of_range, shape, n_actions, who)
+        _raise_range(arr, _first(out_of_range), shape, n_actions, who)
     return arr.astype(np.int64)
 
 
@@ -112,25 +112,29 @@ def _validate_objects(arr: np.ndarray, shape: tuple[int, ...], n_actions: int, w
     values = np.empty(len(flat), dtype=np.int64)
     for k, v in enumerate(flat):
         if isinstance(v, (bool, np.bool_)):
-            _raise_type(arr, _flag(arr, k), shape, n_actions, who)
+            _raise_type(arr, _at(arr, k), shape, n_actions, who)
         if isinstance(v, (float, np.floating)):
             if math.isfinite(v) and v != math.floor(v):
-                _raise_type(arr, _flag(arr, k), shape, n_actions, who)
+                _raise_type(arr, _at(arr, k), shape, n_actions, who)
         elif not isinstance(v, (int, np.integer)):
             try:  # other integer types (a 0-d torch int tensor) say so through __index__
                 v = operator.index(v)
             except TypeError:
-                _raise_type(arr, _flag(arr, k), shape, n_actions, who)
+                _raise_type(arr, _at(arr, k), shape, n_actions, who)
         if not 0 <= v < n_actions:  # also false for nan
-            _raise_range(arr, _flag(arr, k), shape, n_actions, who)
+            _raise_range(arr, _at(arr, k), shape, n_actions, who)
         values[k] = int(v)
     return values.reshape(shape)
 
 
-def _flag(arr: np.ndarray, k: int) -> np.ndarray:
-    flags = np.zeros(arr.size, dtype=bool)
-    flags[k] = True
-    return flags.reshape(arr.shape)
+def _at(arr: np.ndarray, k: int) -> tuple[int, ...]:
+    """The index of flat element ``k`` of ``arr``."""
+    return tuple(int(i) for i in np.unravel_index(k, arr.shape))
+
+
+def _first(flags: np.ndarray) -> tuple[int, ...]:
+    """The index of the first True of ``flags``."""
+    return tuple(int(v) for v in np.argwhere(flags)[0])
 
 
 def _axes(shape: tuple[int, ...]) -> str:
@@ -148,8 +152,7 @@ def _shown(value: Any) -> str:
     return repr(value.item() if isinstance(value, np.generic) else value)
 
 
-def _raise_type(arr: np.ndarray, flags: np.ndarray, shape: tuple[int, ...], n_actions: int, who: str) -> None:
-    index = tuple(int(v) for v in np.argwhere(flags)[0])
+def _raise_type(arr: np.ndarray, index: tuple[int, ...], shape: tuple[int, ...], n_actions: int, who: str) -> None:
     value = arr[index]
     what = "a bool" if isinstance(value, (bool, np.bool_)) else f"of type {type(value).__name__}"
     if isinstance(value, (float, np.floating)):
@@ -158,8 +161,7 @@ def _raise_type(arr: np.ndarray, flags: np.ndarray, shape: tuple[int, ...], n_ac
                     f"0..{n_actions - 1}")
 
 
-def _raise_range(arr: np.ndarray, flags: np.ndarray, shape: tuple[int, ...], n_actions: int, who: str) -> None:
-    index = tuple(int(v) for v in np.argwhere(flags)[0])
+def _raise_range(arr: np.ndarray, index: tuple[int, ...], shape: tuple[int, ...], n_actions: int, who: str) -> None:
     raise InvalidActionError(f"{_agent(index, shape, who)}: action {_shown(arr[index])} is out of range; actions are "
                              f"0..{n_actions - 1}")
 
