@@ -31,6 +31,7 @@ order: SMAC's quirk, kept so that red's view is SMAC's).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -121,10 +122,14 @@ class SmacOptions:
         return bool(self.obs_all_health or self.obs_own_health)
 
     @classmethod
-    def from_kwargs(cls, **kwargs) -> SmacOptions:
-        """Build from keyword arguments, naming any unknown one."""
+    def from_kwargs(cls, env_keywords: Sequence[str] = (), /, **kwargs) -> SmacOptions:
+        """Build from keyword arguments, naming any unknown one; an env passes its own keywords as
+        ``env_keywords`` so the error lists every keyword it takes."""
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(kwargs) - known)
+        if unknown and env_keywords:
+            raise TypeError(f"unknown keyword(s) {unknown}; the env takes {sorted(env_keywords)} and SMAC's options "
+                            f"{sorted(known)}")
         if unknown:
             raise TypeError(f"unknown SMAC option(s) {unknown}; allowed: {sorted(known)}")
         return cls(**kwargs)

@@ -49,12 +49,7 @@ def make_options(options: SmacOptions | dict | None, smac_options: dict[str, Any
     else:
         raise TypeError(f"options must be a SmacOptions, a dict of SMAC options or None, got {options!r}")
     base.update(smac_options)
-    known = set(SmacOptions.__dataclass_fields__)
-    unknown = sorted(set(base) - known)
-    if unknown:
-        raise TypeError(f"unknown keyword(s) {unknown}; the env takes {sorted(env_keywords)} and SMAC's options "
-                        f"{sorted(known)}")
-    return SmacOptions(**base)
+    return SmacOptions.from_kwargs(env_keywords, **base)
 
 
 def keywords_of(function: Any) -> list[str]:
