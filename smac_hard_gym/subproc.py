@@ -56,10 +56,9 @@ ON_WORKER_ERROR = ("raise", "restart")
 START_METHODS = tuple(mp.get_all_start_methods())
 MASK_KEY = "action_mask"
 RESTART_KEY = "worker_restarted"
-
-
 COLD_START_TIMEOUT = 600.0  # seconds for a worker's first answer when it must compile the engine's kernels
 WARM_START_TIMEOUT = 120.0  # ... when numba's cache holds them (a hang before the first answer is caught sooner)
+
 
 class WorkerError(RuntimeError):
     """A worker process died, hung past the timeout, or could not be built."""
