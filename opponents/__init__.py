@@ -67,6 +67,13 @@ def check_isolation(isolation: str, guard: bool | None = None) -> str:
     return isolation
 
 
+def _from_outside(entry: str | Script) -> bool:
+    """A script from outside the library: a Script object not built in, or a file or module reference."""
+    if isinstance(entry, Script):
+        return not is_builtin(entry)
+    return isinstance(entry, str) and entry not in SCRIPTS and entry not in MIXTURE_NAMES and is_reference(entry)
+
+
 def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = None,
                 time_limit: float | None = DEFAULT_TIME_LIMIT, isolation: str = "guard") -> Script:
     """One script for map ``spec``: a built-in name, a user script reference or a Script object.
@@ -80,9 +87,7 @@ def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = N
     isolation = check_isolation(isolation, guard)
     if guard is False:
         isolation = "none"
-    if isolation == "process" and (isinstance(entry, Script) and not is_builtin(entry)
-                                   or isinstance(entry, str) and entry not in SCRIPTS and entry not in MIXTURE_NAMES
-                                   and is_reference(entry)):
+    if isolation == "process" and _from_outside(entry):
         if isinstance(entry, GuardedScript):
             entry = entry.script
         return GuardedScript(ProcessIsolatedScript(entry, time_limit=time_limit), time_limit=None)

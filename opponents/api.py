@@ -26,7 +26,7 @@ from smac_hard_gym.engine.state import BLUE, RED, BattleState, Commands
 from smac_hard_gym.maps import MapSpec, UnitGroup
 from smac_hard_gym.units import STATS, S
 
-__all__ = ["SideView", "Script", "ScriptError", "RED", "BLUE", "spawn_centre", "read_only_spec"]
+__all__ = ["SideView", "Script", "ScriptError", "RED", "BLUE", "spawn_centre", "read_only_spec", "frozen_copy"]
 
 
 class ScriptError(RuntimeError):
@@ -54,15 +54,16 @@ def spawn_centre(groups: tuple[UnitGroup, ...]) -> np.ndarray:
     return (points * counts[:, None]).sum(axis=0) / counts.sum()
 
 
-def _frozen_copy(array: np.ndarray) -> np.ndarray:
-    out = array.copy()
+def frozen_copy(array: np.ndarray) -> np.ndarray:
+    """A read-only copy of ``array`` (what untrusted scripts are handed)."""
+    out = np.array(array, copy=True)
     out.flags.writeable = False
     return out
 
 
 def read_only_spec(spec: MapSpec) -> MapSpec:
     """``spec`` with read-only copies of its terrain arrays (the engine's own spec stays as it is)."""
-    return replace(spec, pathable=_frozen_copy(spec.pathable), cliff=_frozen_copy(spec.cliff))
+    return replace(spec, pathable=frozen_copy(spec.pathable), cliff=frozen_copy(spec.cliff))
 
 
 @dataclass
@@ -100,9 +101,9 @@ class SideView:
         the engine. ``spec``: a read-only twin of ``self.spec`` made earlier by :func:`read_only_spec` (made here
         when None).
         """
-        state = BattleState(*(_frozen_copy(a) for a in self.state))
+        state = BattleState(*(frozen_copy(a) for a in self.state))
         return SideView(state=state, spec=read_only_spec(self.spec) if spec is None else spec, side=self.side,
-                        own=self.own, enemy=self.enemy, episode_step=_frozen_copy(self.episode_step))
+                        own=self.own, enemy=self.enemy, episode_step=frozen_copy(self.episode_step))
 
     @property
     def n_own(self) -> int:

@@ -44,7 +44,7 @@ from smac_hard_gym.engine.state import (
     Commands,
 )
 from smac_hard_gym.maps import MapSpec
-from smac_hard_gym.opponents.api import Script, ScriptError, SideView, read_only_spec
+from smac_hard_gym.opponents.api import Script, ScriptError, SideView, frozen_copy, read_only_spec
 
 __all__ = ["GuardedScript", "DEFAULT_TIME_LIMIT", "check_commands"]
 
@@ -200,10 +200,9 @@ class GuardedScript(Script):
                               f"{self.time_limit:g} s")
 
     def reset(self, view: SideView, battles: np.ndarray, rngs: list[np.random.Generator]) -> None:
-        battles = np.array(battles, dtype=np.int64)
-        battles.flags.writeable = False
         # A copy of the list: the script may keep or draw from the generators, not replace the caller's.
-        self._call("reset", view, self.script.reset, self._read_only(view), battles, list(rngs))
+        self._call("reset", view, self.script.reset, self._read_only(view),
+                   frozen_copy(np.asarray(battles, dtype=np.int64)), list(rngs))
 
     def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
         shape = commands.kind.shape
@@ -213,9 +212,8 @@ class GuardedScript(Script):
         scratch.clear()
         scratch.x[:] = 0.0
         scratch.y[:] = 0.0
-        mask = np.array(active, dtype=bool)
-        mask.flags.writeable = False
-        self._call("act", view, self.script.act, self._read_only(view), scratch, mask)
+        self._call("act", view, self.script.act, self._read_only(view), scratch,
+                   frozen_copy(np.asarray(active, dtype=bool)))
         rows = np.flatnonzero(active)
         if rows.size == 0:
             return
