@@ -49,12 +49,18 @@ from smac_hard_gym.opponents.sandbox import ProcessIsolatedScript
 __all__ = [
     "Script", "SideView", "ScriptError", "BaseScript", "SmacScript", "BatchScript", "Frame", "Memory", "Orders",
     "PerBattleScript", "BattleView", "Mixture", "GuardedScript", "ProcessIsolatedScript", "ScriptInfo", "SCRIPTS",
-    "POOLS", "ISOLATION_MODES", "make_opponent", "make_script", "scripts_for_map", "pool_for_map", "load_script",
+    "POOLS", "ISOLATION_MODES", "make_opponent", "opponent_from_text", "make_script", "scripts_for_map",
+    "pool_for_map", "load_script",
 ]
 
 OpponentSpec = str | Script | Sequence[str | Script]
 
 ISOLATION_MODES = ("none", "guard", "process")
+
+
+def opponent_from_text(text: str) -> str | list[str]:
+    """A command line's opponent: one name or reference, or names joined by commas (a mixture, as a list)."""
+    return text.split(",") if "," in text else text
 
 
 def check_isolation(isolation: str, guard: bool | None = None) -> str:

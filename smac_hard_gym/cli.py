@@ -46,13 +46,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     module = importlib.import_module(COMMANDS[args.command])
-    USER_ERRORS = _user_errors()  # noqa: N806  (a tuple of classes for the except clause below)
     try:
         return int(module.run(args) or 0)
     except KeyboardInterrupt:
         print(f"\nsmac-hard-gym {args.command}: interrupted", file=sys.stderr)
         return 130
-    except USER_ERRORS as err:  # bad input: one line naming it, no traceback (SMAC_HARD_GYM_TRACEBACK=1 shows it)
+    except _user_errors() as err:  # bad input: one line naming it, no traceback (SMAC_HARD_GYM_TRACEBACK=1 shows it)
         if os.environ.get("SMAC_HARD_GYM_TRACEBACK"):
             raise
         print(f"smac-hard-gym {args.command}: error: {err}", file=sys.stderr)

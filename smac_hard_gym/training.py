@@ -155,13 +155,12 @@ def evaluate(model: Any, venv: Any, episodes: int, *, seed: int | None = None,
 def resolve_opponents(map_name: str, opponent: str) -> tuple[list[str], np.ndarray]:
     """The scripts an evaluation covers and their mixture weights: ``"all"`` (every script that plays the map),
     ``"default"`` / ``"blackbox"`` (the map's pools), a script name, or names joined by commas (equal weights)."""
-    from smac_hard_gym.opponents import make_opponent, scripts_for_map
+    from smac_hard_gym.opponents import make_opponent, opponent_from_text, scripts_for_map
 
     if opponent == "all":
         names = sorted(scripts_for_map(map_name))
         return names, np.full(len(names), 1.0 / len(names))
-    entries: Any = opponent.split(",") if "," in opponent else opponent
-    script = make_opponent(map_name, entries)
+    script = make_opponent(map_name, opponent_from_text(opponent))
     names = getattr(script, "names", None) or [script.name]
     probs = getattr(script, "probs", None)
     return list(names), np.full(len(names), 1.0 / len(names)) if probs is None else np.asarray(probs)
@@ -297,6 +296,7 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
     from sb3_contrib import MaskablePPO
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from smac_hard_gym.opponents import opponent_from_text
     from smac_hard_gym.vector import NativeVectorEnv
     from smac_hard_gym.wrappers.sb3 import SB3VecEnv
 
@@ -306,7 +306,7 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(asdict(config), indent=2) + "\n")
 
-    opponent: Any = config.opponent.split(",") if "," in config.opponent else config.opponent
+    opponent = opponent_from_text(config.opponent)
     kwargs = config.env_kwargs()
     map_name = kwargs.pop("map_name")
     timed = _timed_vec_env_class()(SB3VecEnv(NativeVectorEnv(

@@ -73,4 +73,4 @@ def test_solutions_command_names_the_maps_it_knows(capsys):
     from smac_hard_gym.cli import main
 
     assert main(["solutions", "--map", "8m"]) == 2
-    assert "maps with some" in capsys.readouterr().out
+    assert "maps with some" in capsys.readouterr().err  # the CLI's one-line error, on stderr

@@ -31,14 +31,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
 
+    from smac_hard_gym.opponents import opponent_from_text
     from smac_hard_gym.opponents.duel import run_duel
 
     batch = args.batch if args.batch is not None else min(args.episodes, 64)
     print(f"duel on {args.map}: red={args.red} blue={args.blue} episodes={args.episodes} seed={args.seed} "
           f"batch={batch}")
-    red, blue = (name.split(",") if "," in name else name for name in (args.red, args.blue))  # lists as in train
-    result = run_duel(args.map, red, blue, episodes=args.episodes, seed=args.seed, batch_size=args.batch,
-                      red_probs=args.red_probs, blue_probs=args.blue_probs, progress=not args.no_progress)
+    result = run_duel(args.map, opponent_from_text(args.red), opponent_from_text(args.blue), episodes=args.episodes,
+                      seed=args.seed, batch_size=args.batch, red_probs=args.red_probs, blue_probs=args.blue_probs,
+                      progress=not args.no_progress)
     print(f"red wins   {result.red_win_rate:7.1%}  ({result.red_wins})")
     print(f"blue wins  {result.blue_win_rate:7.1%}  ({result.blue_wins})")
     print(f"draws      {result.draw_rate:7.1%}  ({result.draws}, {result.timeouts} at the episode limit)")

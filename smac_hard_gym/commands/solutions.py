@@ -21,13 +21,8 @@ def run(args: argparse.Namespace) -> int:
     from smac_hard_gym.opponents.known_solutions import check_claim, claims_for_map
 
     if args.episodes < 1:
-        print(f"error: --episodes must be a positive int, got {args.episodes}")
-        return 2
-    try:
-        claims = claims_for_map(args.map)
-    except ValueError as err:
-        print(f"error: {err}")
-        return 2
+        raise ValueError(f"--episodes must be a positive int, got {args.episodes}")
+    claims = claims_for_map(args.map)  # an unknown map: ValueError, one line from the CLI
     print(f"{'map':<14}{'red (learner side)':<20}{'vs':<9}{'win rate':>9}  {'bound':<24}result")
     rows, failed = [], 0
     for claim in claims:

@@ -60,9 +60,9 @@ def run(args: argparse.Namespace) -> int:
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, net_arch=net_arch,
             torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
             tensorboard=args.tensorboard)
-        from smac_hard_gym.opponents import make_opponent
+        from smac_hard_gym.opponents import make_opponent, opponent_from_text
 
-        make_opponent(args.map, args.opponent.split(",") if "," in args.opponent else args.opponent)
+        make_opponent(args.map, opponent_from_text(args.opponent))
     except (TypeError, ValueError) as err:
         raise SystemExit(f"smac-hard-gym train: {err}") from None
     print("config:")
