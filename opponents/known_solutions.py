@@ -272,8 +272,6 @@ class HideThenPickOff(BatchScript):
 class Claim:
     """One known outcome: ``red`` against ``blue`` on ``map_name`` wins at least ``at_least`` (or at most
     ``at_most``) of the episodes, or wins more often than the controller ``better_than`` does against ``blue``.
-
-    ``open_issue`` names why the engine does not yet reproduce the outcome (the claim is then reported, not asserted).
     """
 
     map_name: str
@@ -283,7 +281,6 @@ class Claim:
     at_least: float | None = None
     at_most: float | None = None
     better_than: str | None = None
-    open_issue: str | None = None
 
     def holds(self, rate: float, other_rate: float | None = None) -> bool:
         if self.at_least is not None and rate < self.at_least:

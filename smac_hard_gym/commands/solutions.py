@@ -28,13 +28,12 @@ def run(args: argparse.Namespace) -> int:
     for claim in claims:
         verdict = check_claim(claim, episodes=args.episodes, seed=args.seed)
         bound = claim.bound if claim.better_than is None else f"> {verdict.other_rate:.2f} ({claim.better_than})"
-        result = "holds" if verdict.holds else ("FAILS" if claim.open_issue is None else "fails (open: "
-                                                f"{claim.open_issue})")
-        failed += not verdict.holds and claim.open_issue is None
+        result = "holds" if verdict.holds else "FAILS"
+        failed += not verdict.holds
         print(f"{claim.map_name:<14}{claim.red:<20}{claim.blue:<9}{verdict.rate:>9.2f}  {bound:<24}{result}")
         rows.append({"map": claim.map_name, "red": claim.red, "blue": claim.blue, "why": claim.why,
                      "win_rate": verdict.rate, "bound": claim.bound, "comparison_win_rate": verdict.other_rate,
-                     "holds": verdict.holds, "open_issue": claim.open_issue, "episodes": args.episodes,
+                     "holds": verdict.holds, "episodes": args.episodes,
                      "seed": args.seed})
     if args.json:
         with open(args.json, "w") as fh:
