@@ -36,8 +36,8 @@ from smac_hard_gym.opponents.helpers import (
     argmin_masked,
     lowest,
     nearest,
+    of_kind,
     retreat_points,
-    slots_of,
 )
 
 __all__ = ["AlternatingAggro", "StalkerKite", "HoldChoke", "OpenFight", "HideThenPickOff", "Claim", "Verdict",
@@ -209,8 +209,8 @@ class OpenFight(BatchScript):
 
 
 class HideThenPickOff(BatchScript):
-    """3s5z_vs_3s6z: hide in the corner farthest from the enemy's path, wait for it to settle, then pull single
-    enemies into the army with one stalker and kill them there."""
+    """3s5z_vs_3s6z: hide in the corner behind the own spawn, wait for the enemy to settle at its point, then pull
+    single enemies into the army with one stalker and kill them there."""
 
     name = "hide_pick_off"
     description = "hide in a corner, wait for the enemy to idle at its point, pull single units into the army"
@@ -247,8 +247,7 @@ class HideThenPickOff(BatchScript):
         orders.stop(alive & home)
         # Fight back only where it is safe: everyone takes enemies that came close to the hideout, the stalkers also
         # shoot enemies attacking the army from range; nobody walks out into the enemy's group.
-        stalkers = np.zeros(alive.shape, dtype=bool)
-        stalkers[:, slots_of(frame.view, "stalker")] = True
+        stalkers = np.broadcast_to(of_kind(frame.own_type, "stalker"), alive.shape)
         targets = _enemy_targets(frame)
         attacking = frame.enemy_alive & (targets >= 0)
         close = frame.enemy_alive & (np.hypot(frame.enemy_x - hx, frame.enemy_y - hy) <= self.ambush_radius)
