@@ -21,7 +21,7 @@ from smac_hard_gym.opponents.helpers import (
 )
 
 __all__ = ["Nearest", "Weakest", "WeakestEach", "FocusFire", "Kite", "RetreatWounded", "Stop", "Chase",
-           "RoundRobin", "RoundRobinIntended", "attack_nearest", "nearest_threat", "back_off"]
+           "RoundRobin", "RoundRobinIntended", "attack_nearest", "attack_shared", "nearest_threat", "back_off"]
 
 READY_LOOPS = 8.0  # a weapon whose cooldown ends within one env step (8 game loops) will fire this step
 
@@ -30,6 +30,15 @@ def attack_nearest(frame: Frame, orders: Orders, units: np.ndarray | None = None
     """Units (all alive by default) attack their nearest enemy they can hit."""
     units = frame.own_alive if units is None else units
     orders.attack(units, nearest(frame.dist, frame.targetable))
+
+
+def attack_shared(frame: Frame, orders: Orders, target: np.ndarray) -> None:
+    """Every living unit attacks the row's shared ``target`` (R,) (-1: none), or its nearest enemy where it cannot
+    hit that one."""
+    common = np.broadcast_to(target[:, None], frame.own_alive.shape)
+    can = np.take_along_axis(frame.targetable, np.maximum(common, 0)[:, :, None], axis=2)[:, :, 0] & (common >= 0)
+    attack_nearest(frame, orders, frame.own_alive & ~can)
+    orders.attack(can, common)
 
 
 def nearest_threat(frame: Frame, margin: float) -> np.ndarray:
@@ -75,11 +84,7 @@ class Weakest(BatchScript):
 
     def plan(self, frame: Frame, orders: Orders) -> None:
         target = argmin_masked(frame.enemy_health, frame.enemy_alive & frame.targetable.any(axis=1))
-        common = np.broadcast_to(target[:, None], frame.own_alive.shape)
-        can = np.take_along_axis(frame.targetable, np.maximum(common, 0)[:, :, None], axis=2)[:, :, 0]
-        can &= common >= 0
-        attack_nearest(frame, orders, frame.own_alive & ~can)
-        orders.attack(can, common)
+        attack_shared(frame, orders, target)
 
 
 class WeakestEach(BatchScript):
@@ -117,11 +122,7 @@ class FocusFire(BatchScript):
         still = (kept >= 0) & np.take_along_axis(frame.enemy_alive, np.maximum(kept, 0)[:, None], axis=1)[:, 0]
         target = np.where(still, kept, fresh)
         self.memory.target[rows] = target
-        common = np.broadcast_to(target[:, None], frame.own_alive.shape)
-        can = np.take_along_axis(frame.targetable, np.maximum(common, 0)[:, :, None], axis=2)[:, :, 0]
-        can &= common >= 0
-        attack_nearest(frame, orders, frame.own_alive & ~can)
-        orders.attack(can, common)
+        attack_shared(frame, orders, target)
 
 
 class Kite(BatchScript):
