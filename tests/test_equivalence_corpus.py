@@ -1,0 +1,18 @@
+"""Every env API plays the recorded seeded episodes of every map bit for bit (``tests/equivalence_corpus.py``)."""
+
+import pytest
+
+from smac_hard_gym.maps import list_maps
+from tests.equivalence_corpus import APIS, PLAYERS, load
+
+CORPUS = load()
+
+
+def test_corpus_covers_every_map():
+    assert sorted(CORPUS) == sorted(list_maps())
+
+
+@pytest.mark.parametrize("map_name", sorted(list_maps()))
+def test_replays_bit_for_bit(map_name):
+    played = {api: PLAYERS[api](map_name) for api in APIS}
+    assert played == CORPUS[map_name]
