@@ -158,24 +158,24 @@ def load() -> dict[str, dict[str, str]]:
     return json.loads(CORPUS.read_text())
 
 
-def record(maps: list[str]) -> dict[str, dict[str, str]]:
-    return {name: {api: PLAYERS[api](name) for api in APIS} for name in maps}
-
-
 def main() -> None:
     from smac_hard_gym.maps import list_maps
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help="record the corpus anew (a change meant to alter play)")
+    parser.add_argument("--maps", nargs="+", default=list(list_maps()), help="check these maps only")
+    parser.add_argument("--apis", nargs="+", default=list(APIS), choices=APIS, help="check these APIs only")
     args = parser.parse_args()
-    corpus = record(list(list_maps()))
+    if args.write:
+        args.maps, args.apis = list(list_maps()), list(APIS)
+    corpus = {name: {api: PLAYERS[api](name) for api in args.apis} for name in args.maps}
     if args.write:
         CORPUS.parent.mkdir(exist_ok=True)
         CORPUS.write_text(json.dumps(corpus, indent=1, sort_keys=True) + "\n")
         print(f"wrote {CORPUS}")
     else:
         stored = load()
-        differ = [(m, a) for m in corpus for a in APIS if stored.get(m, {}).get(a) != corpus[m][a]]
+        differ = [(m, a) for m in corpus for a in args.apis if stored.get(m, {}).get(a) != corpus[m][a]]
         print("identical" if not differ else f"differ: {differ}")
 
 
