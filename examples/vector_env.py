@@ -11,8 +11,8 @@ import gymnasium as gym
 import numpy as np
 
 import smac_hard_gym  # noqa: F401  (registers the SMACHard-* ids)
-from smac_hard_gym.subproc import SubprocVectorEnv
-from smac_hard_gym.vector import NativeVectorEnv
+from smac_hard_gym.envs.subproc import SubprocVectorEnv
+from smac_hard_gym.envs.vector import NativeVectorEnv
 
 
 def random_legal_actions(masks: np.ndarray, n_agents: int, rng: np.random.Generator) -> np.ndarray:

@@ -1,8 +1,8 @@
 """smac-hard-gym: SMAC-HARD on an embedded, batched StarCraft II battle engine.
 
 Importing the package registers ``SMACHard-<map>-v0`` for every map in :func:`smac_hard_gym.maps.list_maps`, so
-``gymnasium.make("SMACHard-3m-v0")`` builds a :class:`~smac_hard_gym.gym_env.SMACHardEnv` and
-``gymnasium.make_vec("SMACHard-3m-v0", num_envs=8)`` a :class:`~smac_hard_gym.vector.NativeVectorEnv`. The entry
+``gymnasium.make("SMACHard-3m-v0")`` builds a :class:`~smac_hard_gym.envs.gym_env.SMACHardEnv` and
+``gymnasium.make_vec("SMACHard-3m-v0", num_envs=8)`` a :class:`~smac_hard_gym.envs.vector.NativeVectorEnv`. The entry
 points are lazy strings: the import stays light (no engine compile, no torch), and ``"smac_hard_gym:SMACHard-3m-v0"``
 works in fresh worker processes. ``StarCraft2Env`` (SMAC's API) is exported lazily too.
 """
@@ -14,14 +14,14 @@ import os as _os
 # The engine's threading layer (see smac_hard_gym/engine/__init__.py); set before numba is imported anywhere.
 _os.environ.setdefault("NUMBA_THREADING_LAYER", "workqueue")
 
-ENTRY_POINT = "smac_hard_gym.gym_env:SMACHardEnv"
-VECTOR_ENTRY_POINT = "smac_hard_gym.vector:NativeVectorEnv"
+ENTRY_POINT = "smac_hard_gym.envs.gym_env:SMACHardEnv"
+VECTOR_ENTRY_POINT = "smac_hard_gym.envs.vector:NativeVectorEnv"
 
 _LAZY_EXPORTS = {
-    "StarCraft2Env": "smac_hard_gym.starcraft2",
-    "SMACHardEnv": "smac_hard_gym.gym_env",
-    "NativeVectorEnv": "smac_hard_gym.vector",
-    "SubprocVectorEnv": "smac_hard_gym.subproc",
+    "StarCraft2Env": "smac_hard_gym.envs.starcraft2",
+    "SMACHardEnv": "smac_hard_gym.envs.gym_env",
+    "NativeVectorEnv": "smac_hard_gym.envs.vector",
+    "SubprocVectorEnv": "smac_hard_gym.envs.subproc",
 }
 
 

@@ -17,8 +17,8 @@ def kernels_cached() -> bool | None:
     batch size) and the feature kernels every env uses, for their current source; False when a run will compile
     them; None when it cannot tell (numba's cache internals moved)."""
     try:
-        from smac_hard_gym import feature_kernels
         from smac_hard_gym.engine import kernels
+        from smac_hard_gym.smac import kernels as feature_kernels
 
         def cached(dispatcher) -> bool:
             # numba's index of cached overloads: empty when missing or written for another version of the source

@@ -3,7 +3,7 @@
 Needs the ``[train]`` extra (torch, stable-baselines3, sb3-contrib, matplotlib); everything heavy is imported inside
 the functions, so ``import smac_hard_gym.training`` is cheap.
 
-- :func:`train`: MaskablePPO on a :class:`~smac_hard_gym.vector.NativeVectorEnv` (``SAME_STEP``) through the SB3
+- :func:`train`: MaskablePPO on a :class:`~smac_hard_gym.envs.vector.NativeVectorEnv` (``SAME_STEP``) through the SB3
   adapter, a masked deterministic win-rate evaluation on a schedule, and the run's files in ``out``:
   ``model.zip``, ``config.json``, ``curve.csv`` (timesteps, win rate, return, time inside the env), ``curve.png``
   and ``summary.json``. Time spent in ``env.step`` and ``action_masks`` is measured, so the env's share of the
@@ -171,7 +171,7 @@ def evaluate_scripts(model: Any, map_name: str, opponent: str, episodes: int, *,
                      log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Evaluate ``model`` for ``episodes`` episodes against each script of ``opponent`` (see
     :func:`resolve_opponents`); the mixture's win rate is the weighted mean of the scripts' (its expectation)."""
-    from smac_hard_gym.vector import NativeVectorEnv
+    from smac_hard_gym.envs.vector import NativeVectorEnv
 
     names, probs = resolve_opponents(map_name, opponent)
     kwargs = dict(env_kwargs or {})
@@ -296,8 +296,8 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
     from sb3_contrib import MaskablePPO
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from smac_hard_gym.envs.vector import NativeVectorEnv
     from smac_hard_gym.opponents import opponent_from_text
-    from smac_hard_gym.vector import NativeVectorEnv
     from smac_hard_gym.wrappers.sb3 import SB3VecEnv
 
     torch.set_num_threads(config.torch_threads)

@@ -5,13 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from smac_hard_gym.actions import (
-    InvalidActionError,
-    available_actions,
-    check_actions,
-    decode_actions,
-    validate_actions,
-)
 from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import (
     BLUE,
@@ -23,7 +16,14 @@ from smac_hard_gym.engine.state import (
     RED,
     Commands,
 )
-from smac_hard_gym.features import SideFeatures, SmacOptions
+from smac_hard_gym.smac.actions import (
+    InvalidActionError,
+    available_actions,
+    check_actions,
+    decode_actions,
+    validate_actions,
+)
+from smac_hard_gym.smac.features import SideFeatures, SmacOptions
 
 
 def _avail(engine, side=RED, **options):

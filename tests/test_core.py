@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from smac_hard_gym.core import SELF_PLAY_NAME, TwoPlayerCore
 from smac_hard_gym.engine.state import BLUE, RED
-from smac_hard_gym.features import RUNNING
+from smac_hard_gym.envs.core import SELF_PLAY_NAME, TwoPlayerCore
 from smac_hard_gym.maps import SMAC_MAPS
 from smac_hard_gym.opponents import Script
+from smac_hard_gym.smac.features import RUNNING
 
 
 def random_available(rng, avail):

@@ -11,11 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from smac_hard_gym.actions import available_actions
 from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import BLUE, RED
-from smac_hard_gym.features import SideFeatures, SmacOptions
 from smac_hard_gym.maps import SMAC_MAPS, load_map
+from smac_hard_gym.smac.actions import available_actions
+from smac_hard_gym.smac.features import SideFeatures, SmacOptions
 from smac_hard_gym.units import UNITS
 
 # smac_interface §4: default-config sizes (n_actions, obs, state).

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from smac_hard_gym.engine.state import BLUE, RED
-from smac_hard_gym.gym_env import SMACHardEnv
+from smac_hard_gym.envs.gym_env import SMACHardEnv
+from smac_hard_gym.envs.starcraft2 import StarCraft2Env
+from smac_hard_gym.envs.subproc import make_subproc_env
+from smac_hard_gym.envs.vector import NativeVectorEnv
 from smac_hard_gym.maps import list_maps
-from smac_hard_gym.starcraft2 import StarCraft2Env
-from smac_hard_gym.subproc import make_subproc_env
-from smac_hard_gym.vector import NativeVectorEnv
 
 SEED = 13
 ROUNDS = 100  # malformed actions per env, each followed by a legal step (the file takes ~12 s on 2 cores)

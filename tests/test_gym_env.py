@@ -12,8 +12,8 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import smac_hard_gym
-from smac_hard_gym.actions import InvalidActionError
-from smac_hard_gym.gym_env import SMACHardEnv
+from smac_hard_gym.envs.gym_env import SMACHardEnv
+from smac_hard_gym.smac.actions import InvalidActionError
 
 # SMAC's default sizes per map: (n_agents, n_actions, obs_size, state_size) (smac_interface.md §4 and §7).
 SMAC_SIZES = {

@@ -32,8 +32,8 @@ def test_register_envs_adds_maps_registered_later():
 @pytest.mark.parametrize("name", sorted(SMAC_LIMITS))
 def test_spec_of_each_map(name):
     spec = gym.spec(f"SMACHard-{name}-v0")
-    assert spec.entry_point == "smac_hard_gym.gym_env:SMACHardEnv"
-    assert spec.vector_entry_point == "smac_hard_gym.vector:NativeVectorEnv"
+    assert spec.entry_point == "smac_hard_gym.envs.gym_env:SMACHardEnv"
+    assert spec.vector_entry_point == "smac_hard_gym.envs.vector:NativeVectorEnv"
     assert spec.max_episode_steps == SMAC_LIMITS[name]
     assert spec.kwargs == {"map_name": name}
     assert not spec.nondeterministic
@@ -75,7 +75,7 @@ def test_unknown_kwarg_names_the_allowed_ones():
 
 
 def test_make_vec_uses_the_native_vector_env_and_passes_autoreset_mode():
-    from smac_hard_gym.vector import NativeVectorEnv
+    from smac_hard_gym.envs.vector import NativeVectorEnv
 
     envs = gym.make_vec("SMACHard-3m-v0", num_envs=3, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
     assert isinstance(envs, NativeVectorEnv)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import BLUE, RED, allocate_state
-from smac_hard_gym.features import BLUE_WON, DRAW, RED_WON, RUNNING, RewardFunction, SideFeatures, SmacOptions
+from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.maps import load_map
 from smac_hard_gym.opponents import Script
+from smac_hard_gym.smac.features import BLUE_WON, DRAW, RED_WON, RUNNING, RewardFunction, SideFeatures, SmacOptions
 from smac_hard_gym.units import STATS, S
 
 MAX_REWARD_3M = 3 * 10 + 200 + 3 * 45  # kills + win + enemy health: 365

@@ -15,8 +15,8 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import VecMonitor
 
 import smac_hard_gym  # noqa: F401  (registers the ids)
-from smac_hard_gym.subproc import make_subproc_env
-from smac_hard_gym.vector import NativeVectorEnv
+from smac_hard_gym.envs.subproc import make_subproc_env
+from smac_hard_gym.envs.vector import NativeVectorEnv
 from smac_hard_gym.wrappers.sb3 import SB3VecEnv
 
 torch.set_num_threads(1)

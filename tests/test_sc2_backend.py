@@ -19,13 +19,13 @@ import numpy as np
 import pytest
 
 from smac_hard_gym.backend import make_backend
-from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import CMD_ATTACK_MOVE, BattleState, Commands
+from smac_hard_gym.envs.core import TwoPlayerCore
+from smac_hard_gym.envs.starcraft2 import StarCraft2Env
 from smac_hard_gym.sc2 import MapNotInstalledError, Sc2Backend, Sc2LaunchError, Sc2NotFoundError
 from smac_hard_gym.sc2.compat import portspicker
 from smac_hard_gym.sc2.standin import make_sc2path
-from smac_hard_gym.starcraft2 import StarCraft2Env
 
 # The fields a raw SC2 unit carries as protobuf floats.
 PROTOCOL_FLOATS = ("x", "y", "health", "shield", "energy", "cooldown", "order_x", "order_y")
@@ -386,7 +386,7 @@ def test_starcraft2env_reports_a_restarted_game_and_saves_replays(sc2path, tmp_p
 
 def test_subprocess_vector_env_of_two_workers_on_the_sc2_backend(sc2path):
     # The design card's shape: worker processes, each running StarCraft II games of the two-player core.
-    from smac_hard_gym.subproc import make_subproc_env
+    from smac_hard_gym.envs.subproc import make_subproc_env
 
     envs = make_subproc_env("3m", num_workers=2, envs_per_worker=1, autoreset_mode="SameStep", timeout=120,
                             backend="sc2", backend_options={"sc2path": str(sc2path)}, opponent="base")

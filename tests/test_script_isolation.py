@@ -271,7 +271,7 @@ class Boom(Script):
 
 
 def test_the_subprocess_vector_env_reraises_the_script_error(tmp_path):
-    from smac_hard_gym.subproc import make_subproc_env
+    from smac_hard_gym.envs.subproc import make_subproc_env
 
     path = tmp_path / "boom.py"
     path.write_text(_BOOM)
@@ -459,7 +459,7 @@ def test_sandbox_load_errors_and_bad_options(sandboxed, tmp_path):
 
 
 def test_a_sandboxed_script_inside_a_vector_env_worker(sandboxed):
-    from smac_hard_gym.subproc import make_subproc_env
+    from smac_hard_gym.envs.subproc import make_subproc_env
 
     opponent = make_opponent("3m", sandboxed("Segfault"), isolation="process", time_limit=5.0)
     opponent.close()  # the worker rebuilds it with a child of its own

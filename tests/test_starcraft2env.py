@@ -9,9 +9,9 @@ import gymnasium
 import numpy as np
 import pytest
 
-from smac_hard_gym.actions import InvalidActionError, ResetNeededError
+from smac_hard_gym.envs.starcraft2 import StarCraft2Env
 from smac_hard_gym.opponents import Script
-from smac_hard_gym.starcraft2 import StarCraft2Env
+from smac_hard_gym.smac.actions import InvalidActionError, ResetNeededError
 
 ENV_INFO_KEYS = {"state_shape", "obs_shape", "n_actions", "n_agents", "episode_limit", "agent_features",
                  "enemy_features"}
@@ -227,7 +227,7 @@ def test_smac_hard_spellings():
 
 
 def test_strategy_prob_weights_the_default_pool(monkeypatch):
-    import smac_hard_gym.core as core_module
+    import smac_hard_gym.envs.core as core_module
 
     seen = {}
 
@@ -251,8 +251,9 @@ def test_render_rgb_array():
 
 
 def test_import_stays_light_and_exports_the_env():
-    code = ("import sys, smac_hard_gym; assert 'smac_hard_gym.starcraft2' not in sys.modules; "
-            "from smac_hard_gym import StarCraft2Env; assert StarCraft2Env.__module__ == 'smac_hard_gym.starcraft2'")
+    code = ("import sys, smac_hard_gym; assert 'smac_hard_gym.envs.starcraft2' not in sys.modules; "
+            "from smac_hard_gym import StarCraft2Env; "
+            "assert StarCraft2Env.__module__ == 'smac_hard_gym.envs.starcraft2'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
 
 

@@ -18,10 +18,10 @@ import pytest
 from gymnasium.vector import AutoresetMode
 from test_vector_env import assert_same
 
-from smac_hard_gym.actions import InvalidActionError, ResetNeededError
-from smac_hard_gym.gym_env import SMACHardEnv
-from smac_hard_gym.subproc import SubprocVectorEnv, WorkerError, concat_infos, make_subproc_env
-from smac_hard_gym.vector import NativeVectorEnv
+from smac_hard_gym.envs.gym_env import SMACHardEnv
+from smac_hard_gym.envs.subproc import SubprocVectorEnv, WorkerError, concat_infos, make_subproc_env
+from smac_hard_gym.envs.vector import NativeVectorEnv
+from smac_hard_gym.smac.actions import InvalidActionError, ResetNeededError
 
 
 class TickEnv(gym.Env):
@@ -250,7 +250,7 @@ def test_workers_do_not_outlive_a_killed_parent(tmp_path):
         import functools, os, signal, sys
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_subproc import TickEnv
-        from smac_hard_gym.subproc import SubprocVectorEnv
+        from smac_hard_gym.envs.subproc import SubprocVectorEnv
         if __name__ == "__main__":
             env = SubprocVectorEnv([functools.partial(TickEnv, 0.0)] * 2, start_method="fork")
             env.reset()
@@ -294,8 +294,8 @@ def test_bad_arguments():
 
 
 def test_a_hang_before_the_first_answer_is_caught_in_minutes_once_kernels_are_cached():
+    from smac_hard_gym.envs.subproc import COLD_START_TIMEOUT, WARM_START_TIMEOUT
     from smac_hard_gym.kernel_cache import kernels_cached
-    from smac_hard_gym.subproc import COLD_START_TIMEOUT, WARM_START_TIMEOUT
 
     native = NativeVectorEnv("3m", 16, autoreset_mode="SameStep")  # compiles (or loads) the kernels here
     native.reset(seed=0)

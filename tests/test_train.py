@@ -11,9 +11,9 @@ from sb3_contrib import MaskablePPO
 from stable_baselines3.common.vec_env import VecMonitor
 
 from smac_hard_gym.cli import main
-from smac_hard_gym.subproc import make_subproc_env
+from smac_hard_gym.envs.subproc import make_subproc_env
+from smac_hard_gym.envs.vector import NativeVectorEnv
 from smac_hard_gym.training import CURVE_COLUMNS, evaluate, resolve_opponents
-from smac_hard_gym.vector import NativeVectorEnv
 from smac_hard_gym.wrappers.sb3 import SB3VecEnv
 
 torch.set_num_threads(1)

@@ -7,8 +7,8 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import smac_hard_gym  # noqa: F401  (registers the ids)
-from smac_hard_gym.gym_env import SMACHardEnv
-from smac_hard_gym.vector import NativeVectorEnv
+from smac_hard_gym.envs.gym_env import SMACHardEnv
+from smac_hard_gym.envs.vector import NativeVectorEnv
 
 
 def assert_same(a, b, path="data"):

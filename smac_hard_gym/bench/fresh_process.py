@@ -25,7 +25,7 @@ def probe_main(map_name: str, num_envs: int, opponent: str) -> None:
     """Runs in a fresh process (``python -c``): cold start, then peak RSS growth of a NativeVectorEnv of
     ``num_envs`` battles over the same process with a warmed one-battle env; prints JSON."""
     t0 = time.perf_counter()
-    from smac_hard_gym.vector import NativeVectorEnv
+    from smac_hard_gym.envs.vector import NativeVectorEnv
 
     t_import = time.perf_counter() - t0
     small = NativeVectorEnv(map_name, 1, opponent=opponent, autoreset_mode="SameStep")

@@ -40,7 +40,7 @@ def _measure_loop(make: Callable[[], tuple[Any, VectorLoop]], seconds: float, re
 def bench_native(map_name: str, num_envs: int, *, opponent: str = "base", seconds: float = 1.0, repeats: int = 3,
                  seed: int = 0, trace_memory: bool = True, section: str = "native") -> Measurement:
     """``NativeVectorEnv`` through the gymnasium vector API: random legal actions, SameStep autoreset."""
-    from smac_hard_gym.vector import NativeVectorEnv
+    from smac_hard_gym.envs.vector import NativeVectorEnv
 
     def make(n: int = num_envs) -> tuple[Any, VectorLoop]:
         env = NativeVectorEnv(map_name, n, opponent=opponent, autoreset_mode="SameStep")
@@ -61,7 +61,7 @@ def bench_native(map_name: str, num_envs: int, *, opponent: str = "base", second
 def bench_subproc(map_name: str, workers: int, envs_per_worker: int, *, opponent: str = "base",
                   seconds: float = 1.0, repeats: int = 3, seed: int = 0) -> Measurement:
     """``SubprocVectorEnv``: ``workers`` processes of ``envs_per_worker`` battles each, one numba thread each."""
-    from smac_hard_gym.subproc import make_subproc_env
+    from smac_hard_gym.envs.subproc import make_subproc_env
 
     def make() -> tuple[Any, VectorLoop]:
         env = make_subproc_env(map_name, num_workers=workers, envs_per_worker=envs_per_worker,
@@ -84,7 +84,7 @@ def bench_starcraft2(map_name: str = "3m", *, opponent: str = "base", seconds: f
                      seed: int = 0) -> Measurement:
     """``StarCraft2Env``, one battle, in pymarl's episode-runner loop: each step reads ``get_state()``,
     ``get_avail_actions()`` and ``get_obs()``, picks random legal actions, calls ``step``; resets on episode end."""
-    from smac_hard_gym.starcraft2 import StarCraft2Env
+    from smac_hard_gym.envs.starcraft2 import StarCraft2Env
 
     env = StarCraft2Env(map_name=map_name, opponent=opponent, seed=seed)
     info = env.get_env_info()

@@ -53,7 +53,7 @@ _CORE_PARTS = (
 
 
 def _wrap_core(splits: _Splits, core: Any) -> None:
-    import smac_hard_gym.core as core_module
+    import smac_hard_gym.envs.core as core_module
 
     owners = {"backend": core.backend, "opponent": core.opponent, "features.0": core.features[0],
               "core_module": core_module, "core": core}
@@ -75,7 +75,7 @@ def profile_native(map_name: str, num_envs: int, *, opponent: str = "base", seco
                    seed: int = 0) -> dict[str, Any]:
     """Wall-time split of NativeVectorEnv steps (random legal policy, SameStep) between the engine, opponent,
     observations, masks, rewards, action handling, the policy, and the rest (Python overhead)."""
-    from smac_hard_gym.vector import NativeVectorEnv
+    from smac_hard_gym.envs.vector import NativeVectorEnv
 
     env = NativeVectorEnv(map_name, num_envs, opponent=opponent, autoreset_mode="SameStep")
     env.reset(seed=seed)
@@ -110,7 +110,7 @@ def profile_native(map_name: str, num_envs: int, *, opponent: str = "base", seco
 def profile_starcraft2(map_name: str = "3m", *, opponent: str = "base", seconds: float = 2.0,
                        seed: int = 0) -> dict[str, Any]:
     """The same split for StarCraft2Env's pymarl loop on one battle."""
-    from smac_hard_gym.starcraft2 import StarCraft2Env
+    from smac_hard_gym.envs.starcraft2 import StarCraft2Env
 
     env = StarCraft2Env(map_name=map_name, opponent=opponent, seed=seed)
     info = env.get_env_info()

@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_fits(model: Any, map_name: str, env_kwargs: dict, trained_on: str | None) -> None:
     """Fail with one line when the model's observation or action space is not the map's (a 3m model on 8m)."""
-    from smac_hard_gym.gym_env import SMACHardEnv
+    from smac_hard_gym.envs.gym_env import SMACHardEnv
 
     env = SMACHardEnv(map_name, **{k: v for k, v in env_kwargs.items() if k != "map_name"})
     try:

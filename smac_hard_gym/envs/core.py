@@ -22,7 +22,7 @@ Public surface::
     core.close()
 
 Attributes: ``spec`` (MapSpec), ``batch_size``, ``mode``, ``options``, ``backend``, ``features`` (the two
-:class:`~smac_hard_gym.features.SideFeatures`, indexed by side: sizes ``obs_size``, ``state_size``,
+:class:`~smac_hard_gym.smac.features.SideFeatures`, indexed by side: sizes ``obs_size``, ``state_size``,
 ``n_actions``, ``n_agents``), ``rewards`` (``max_reward`` per side), ``episode_step`` (int64 (B,)), ``done`` (bool
 (B,): battles that finished and wait for a reset), ``last_action`` (per side, int64 (B, n), -1 = none), ``rngs``
 (one seeded ``np.random.Generator`` per battle), ``opponent`` (the script, None in self-play).
@@ -50,11 +50,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from smac_hard_gym.actions import available_actions, check_actions, decode_actions
 from smac_hard_gym.backend import Backend, make_backend
 from smac_hard_gym.engine.state import BLUE, RED, Commands
-from smac_hard_gym.feature_kernels import finish_step
-from smac_hard_gym.features import (
+from smac_hard_gym.maps import MapSpec, load_map
+from smac_hard_gym.opponents import Script, SideView, make_opponent
+from smac_hard_gym.smac.actions import available_actions, check_actions, decode_actions
+from smac_hard_gym.smac.features import (
     BLUE_WON,
     DRAW,
     RED_WON,
@@ -62,8 +63,7 @@ from smac_hard_gym.features import (
     SideFeatures,
     SmacOptions,
 )
-from smac_hard_gym.maps import MapSpec, load_map
-from smac_hard_gym.opponents import Script, SideView, make_opponent
+from smac_hard_gym.smac.kernels import finish_step
 from smac_hard_gym.units import STATS, WEAPON_HEAL, S
 
 __all__ = ["TwoPlayerCore", "StepResult", "MODES", "SELF_PLAY_NAME", "RED", "BLUE"]

@@ -1,7 +1,7 @@
 """``SubprocVectorEnv``: battles spread over worker processes, each owning a batch of K battles of any backend.
 
 Each worker builds its own vector env from a factory (cloudpickled, so lambdas work under every start method): a
-:class:`~smac_hard_gym.vector.NativeVectorEnv` of K battles, StarCraft II instances (``backend="sc2"``), or any
+:class:`~smac_hard_gym.envs.vector.NativeVectorEnv` of K battles, StarCraft II instances (``backend="sc2"``), or any
 gymnasium env (run as a batch of one). Observations and action masks come back through shared memory; rewards,
 flags and infos through a pipe.
 
@@ -16,7 +16,7 @@ A worker that dies, or does not answer within ``timeout`` seconds, is killed and
 (``"raise"``: :class:`WorkerError`, after closing every worker). Workers never outlive the parent: they die with it
 (``PR_SET_PDEATHSIG`` on Linux, and a closed pipe everywhere), and ``close()`` joins, then kills, each one.
 
->>> from smac_hard_gym.subproc import make_subproc_env
+>>> from smac_hard_gym.envs.subproc import make_subproc_env
 >>> envs = make_subproc_env("3m", num_workers=2, envs_per_worker=4, autoreset_mode="SameStep")
 >>> obs, infos = envs.reset(seed=0)
 >>> obs.shape
@@ -45,9 +45,9 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from smac_hard_gym.actions import InvalidActionError, ResetNeededError, validate_actions
-from smac_hard_gym.autoreset import AUTORESET_NAMES, parse_autoreset_mode
+from smac_hard_gym.envs.autoreset import AUTORESET_NAMES, parse_autoreset_mode
 from smac_hard_gym.lifetime import die_with_parent
+from smac_hard_gym.smac.actions import InvalidActionError, ResetNeededError, validate_actions
 
 __all__ = ["SubprocVectorEnv", "BatchWorker", "WorkerError", "make_subproc_env", "concat_infos",
            "ON_WORKER_ERROR", "START_METHODS"]
@@ -410,7 +410,7 @@ class SubprocVectorEnv(VectorEnv):
             # The server imports the engine once, so each worker forks ready to run: no per-worker imports,
             # and no threads are running in the server when it forks (numba's GNU OpenMP layer is not fork-safe
             # in a process that has run parallel code, which is why "fork" from a busy parent is not).
-            self._ctx.set_forkserver_preload(["smac_hard_gym.vector"])
+            self._ctx.set_forkserver_preload(["smac_hard_gym.envs.vector"])
         # Workers must share the parent's resource tracker: one of their own would unlink the shared memory when
         # its worker exits (a forked worker starts its own unless the parent's already runs).
         resource_tracker.ensure_running()
@@ -685,7 +685,7 @@ class SubprocVectorEnv(VectorEnv):
         rows, agents = np.indices(flat.shape)
         bad = ~masks[rows, agents, flat] & ~self._ended[:, None]
         if bad.any():
-            from smac_hard_gym.gym_env import RAISE_HINT
+            from smac_hard_gym.envs.gym_env import RAISE_HINT
 
             b, i = (int(v) for v in np.argwhere(bad)[0])
             legal = np.flatnonzero(masks[b, i]).tolist()
@@ -897,12 +897,12 @@ def _compact_seed(seeds: list[int | None] | None) -> Any:
 def make_subproc_env(map_name: str = "3m", num_workers: int = 2, envs_per_worker: int = 4, *,
                      autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, start_method: str | None = None,
                      timeout: float = 60.0, on_worker_error: str = "raise", **env_kwargs: Any) -> SubprocVectorEnv:
-    """``num_workers`` processes, each running a :class:`~smac_hard_gym.vector.NativeVectorEnv` of
+    """``num_workers`` processes, each running a :class:`~smac_hard_gym.envs.vector.NativeVectorEnv` of
     ``envs_per_worker`` battles of ``map_name`` (``env_kwargs`` go to it: opponent, obs_mode, backend, ...)."""
     for name, value in (("num_workers", num_workers), ("envs_per_worker", envs_per_worker)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be a positive int, got {value!r}")
-    from smac_hard_gym.vector import NativeVectorEnv
+    from smac_hard_gym.envs.vector import NativeVectorEnv
 
     mode = parse_autoreset_mode(autoreset_mode)
     factory = functools.partial(NativeVectorEnv, map_name, num_envs=int(envs_per_worker), autoreset_mode=mode,

@@ -33,13 +33,13 @@ import numpy as np
 from gymnasium.error import ResetNeeded
 
 from smac_hard_gym.engine.state import BattleState, Commands
-from smac_hard_gym.feature_kernels import (
+from smac_hard_gym.smac.features import SIDE_NAMES, SideFeatures
+from smac_hard_gym.smac.kernels import (
     N_ACTIONS_NO_ATTACK,
     available_actions_batch,
     decode_actions_batch,
     first_invalid_action,
 )
-from smac_hard_gym.features import SIDE_NAMES, SideFeatures
 
 __all__ = ["InvalidActionError", "ResetNeededError", "available_actions", "check_actions", "validate_actions",
            "decode_actions", "action_name"]

@@ -18,12 +18,12 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from smac_hard_gym.actions import ResetNeededError
-from smac_hard_gym.autoreset import parse_autoreset_mode
-from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
-from smac_hard_gym.features import RED_WON, SmacOptions
-from smac_hard_gym.gym_env import RENDER_FPS, JointView, check_invalid_action, keywords_of, make_options
+from smac_hard_gym.envs.autoreset import parse_autoreset_mode
+from smac_hard_gym.envs.core import TwoPlayerCore
+from smac_hard_gym.envs.gym_env import RENDER_FPS, JointView, check_invalid_action, keywords_of, make_options
+from smac_hard_gym.smac.actions import ResetNeededError
+from smac_hard_gym.smac.features import RED_WON, SmacOptions
 
 __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 
@@ -43,7 +43,7 @@ def _masked(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
 class NativeVectorEnv(VectorEnv):
     """``num_envs`` battles of one map in one engine batch, with gymnasium's vector API.
 
-    Each battle is exactly a :class:`~smac_hard_gym.gym_env.SMACHardEnv` (same spaces, rewards, info keys; battle b
+    Each battle is exactly a :class:`~smac_hard_gym.envs.gym_env.SMACHardEnv` (same spaces, rewards, info keys; battle b
     of ``reset(seed=s)`` plays like a single env reset with seed ``s + b``), but all battles advance in one engine
     call and the features are computed for the whole batch at once.
 
@@ -124,7 +124,7 @@ class NativeVectorEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One step of every battle with actions ``(num_envs, n_agents)``; actions are checked as in
-        :class:`~smac_hard_gym.gym_env.SMACHardEnv`, and a rejected step changes nothing."""
+        :class:`~smac_hard_gym.envs.gym_env.SMACHardEnv`, and a rejected step changes nothing."""
         if self._needs_reset:
             raise ResetNeededError("call reset() before step(): no episode has started")
         mode = self.autoreset_mode

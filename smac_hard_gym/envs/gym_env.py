@@ -14,11 +14,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from smac_hard_gym.actions import ResetNeededError, available_actions, check_actions, validate_actions
-from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import RED
-from smac_hard_gym.feature_kernels import first_invalid_action
-from smac_hard_gym.features import SmacOptions
+from smac_hard_gym.envs.core import TwoPlayerCore
+from smac_hard_gym.smac.actions import ResetNeededError, available_actions, check_actions, validate_actions
+from smac_hard_gym.smac.features import SmacOptions
+from smac_hard_gym.smac.kernels import first_invalid_action
 from smac_hard_gym.units import STATS, S
 
 __all__ = ["SMACHardEnv", "JointView", "OBS_MODES", "INVALID_ACTION_POLICIES", "RENDER_FPS", "make_options",
@@ -148,9 +148,9 @@ class JointView:
     def resolve_actions(self, actions: Any, policy: str, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Actions ``(B, n_agents)`` as a fresh int64 array and the number replaced per battle.
 
-        Types, shape and range are checked first (:func:`~smac_hard_gym.actions.validate_actions`: ``TypeError`` or
+        Types, shape and range are checked first (:func:`~smac_hard_gym.smac.actions.validate_actions`: ``TypeError`` or
         ``InvalidActionError``, whatever the policy). Then an unavailable action in an active battle raises
-        :class:`~smac_hard_gym.actions.InvalidActionError` naming the battle, agent and available actions
+        :class:`~smac_hard_gym.smac.actions.InvalidActionError` naming the battle, agent and available actions
         (``policy="raise"``), or is replaced by the agent's first available action (``"noop"``): no-op (0) for a
         dead agent, stop (1) for a living one. Nothing changes state here.
         """
@@ -183,7 +183,7 @@ class SMACHardEnv(gym.Env):
         length ``n_agents * n_actions`` (agent-major; MaskablePPO reads it), and ``info["action_mask"]`` the same
         as a fresh int8 array; every agent always has at least one legal action (no-op when dead, stop when alive).
         An action is an int (or an integral float) in ``0..n_actions-1``; anything else raises ``TypeError`` or
-        :class:`~smac_hard_gym.actions.InvalidActionError` (a ``ValueError``), and the env is left as it was. An
+        :class:`~smac_hard_gym.smac.actions.InvalidActionError` (a ``ValueError``), and the env is left as it was. An
         unavailable action (in range, masked out) is replaced by the agent's first legal action (``invalid_action=
         "noop"``, the default, so ``action_space.sample()`` and gymnasium's and SB3's checkers work: no-op when dead,
         stop when alive) and ``info["invalid_actions"]`` counts the replacements; ``invalid_action="raise"`` (for
@@ -217,8 +217,9 @@ class SMACHardEnv(gym.Env):
         ``map_name``; ``opponent`` (``"default"`` = the map's SMAC-HARD pool, ``"blackbox"``, ``"base"``, any script
         name, a user script reference, a Script, or a list of them) and ``opponent_probs``; ``obs_mode``;
         ``invalid_action`` (``"noop"``, the default, or ``"raise"``); ``render_mode`` (``"rgb_array"`` or ``"human"``);
-        ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a :class:`~smac_hard_gym.features.SmacOptions`
-        or dict) and any SMAC observation/reward option as a keyword (``reward_sparse=True``, ...);
+        ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a
+        :class:`~smac_hard_gym.smac.features.SmacOptions` or dict) and any SMAC observation/reward option as a
+        keyword (``reward_sparse=True``, ...);
         ``opponent_isolation`` (``"guard"``, the default: user scripts run in-process on a read-only copy of the state
         under a time limit; ``"process"``: in a child process that a hang, crash or exit cannot take down; ``"none"``;
         docs/script_isolation.md).

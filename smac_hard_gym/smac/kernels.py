@@ -1,10 +1,10 @@
 """Numba kernels of the SMAC layer: available actions, observations, global state, outcome and rewards, and action
 checking and decoding, each one pass over a batch of battles.
 
-The formulas are those documented in :mod:`smac_hard_gym.features` and :mod:`smac_hard_gym.actions`, which hold
-the per-side constants and call these kernels. Written as loops rather than numpy because a numpy step made some
-twenty array passes and temporaries per feature block: half of a vector env step, and nearly all of a one-battle
-step. Each kernel takes plain arrays (never the state tuple) and writes into caller-owned outputs.
+The formulas are those documented in :mod:`smac_hard_gym.smac.features` and :mod:`smac_hard_gym.smac.actions`,
+which hold the per-side constants and call these kernels. Written as loops rather than numpy because a numpy step
+made some twenty array passes and temporaries per feature block: half of a vector env step, and nearly all of a
+one-battle step. Each kernel takes plain arrays (never the state tuple) and writes into caller-owned outputs.
 
 Float rounding follows the numpy formulation: ratios are computed in float64 and stored as float32, and offsets
 are scaled by float32's 1/9, as SMAC's float32 arrays do.
@@ -106,7 +106,7 @@ def _avail_battle(k, b, x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, p
 def available_actions_batch(rows, x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
                             n_heal_targets, out):
     """Write the available actions of every agent of battles ``rows`` into ``out`` (bool (len(rows), n,
-    n_actions)); see smac_hard_gym.actions."""
+    n_actions)); see smac_hard_gym.smac.actions."""
     for k in range(rows.shape[0]):
         _avail_battle(k, rows[k], x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
                       n_heal_targets, out)

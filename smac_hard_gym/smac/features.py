@@ -4,7 +4,7 @@ Everything here is a function of a :class:`~smac_hard_gym.engine.state.BattleSta
 battles) and a side: :class:`SideFeatures` holds one side's constants (which slots are "own" and "enemy", health
 and shield normalisers, unit-type one-hots) and the feature-name lists that define every offset and size. The red
 side's view is SMAC's (``shared/reference/smac_interface.md`` §3-§6); the blue side gets the same encoding from its
-own side (SMAC-HARD's self-play layout). The arithmetic runs in :mod:`smac_hard_gym.feature_kernels`, one compiled
+own side (SMAC-HARD's self-play layout). The arithmetic runs in :mod:`smac_hard_gym.smac.kernels`, one compiled
 pass per feature block over the batch; this module holds the constants, sizes and names the kernels are given.
 
 Observation of agent i (float32), blocks in this order; a dead agent's observation is all zero except the timestep:
@@ -36,10 +36,11 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from smac_hard_gym import feature_kernels as fk
 from smac_hard_gym.engine.state import BLUE, RED, BattleState
 from smac_hard_gym.engine.terrain import cliff_height
-from smac_hard_gym.feature_kernels import (
+from smac_hard_gym.maps import MapSpec
+from smac_hard_gym.smac import kernels as fk
+from smac_hard_gym.smac.kernels import (
     BLUE_WON,
     DRAW,
     N_ACTIONS_NO_ATTACK,
@@ -48,7 +49,6 @@ from smac_hard_gym.feature_kernels import (
     SHOOT_RANGE,
     SIGHT_RANGE,
 )
-from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.units import STATS, UNITS, WEAPON_HEAL, S, unit_index
 
 __all__ = [
@@ -368,7 +368,7 @@ class SideFeatures:
     def encode(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
                rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Available actions, observations and global state in one kernel call (fresh arrays, the values of
-        :func:`~smac_hard_gym.actions.available_actions`, :meth:`observations` and :meth:`global_state`)."""
+        :func:`~smac_hard_gym.smac.actions.available_actions`, :meth:`observations` and :meth:`global_state`)."""
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         batch = len(rows)
         avail = np.empty((batch, self.n_agents, self.n_actions), dtype=bool)

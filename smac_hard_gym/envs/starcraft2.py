@@ -17,10 +17,17 @@ from typing import Any
 
 import numpy as np
 
-from smac_hard_gym.actions import ResetNeededError, validate_actions
-from smac_hard_gym.core import TwoPlayerCore
 from smac_hard_gym.engine.state import BLUE, RED
-from smac_hard_gym.features import BLUE_WON, N_ACTIONS_NO_ATTACK, RED_WON, SideFeatures, SmacOptions, last_action_onehot
+from smac_hard_gym.envs.core import TwoPlayerCore
+from smac_hard_gym.smac.actions import ResetNeededError, validate_actions
+from smac_hard_gym.smac.features import (
+    BLUE_WON,
+    N_ACTIONS_NO_ATTACK,
+    RED_WON,
+    SideFeatures,
+    SmacOptions,
+    last_action_onehot,
+)
 
 __all__ = ["StarCraft2Env"]
 
@@ -190,9 +197,9 @@ class StarCraft2Env:
         """One env step; ``actions`` lists each agent's action (self-play: ``[red_actions, blue_actions]``).
 
         Actions are ints (or integral floats); anything else raises ``TypeError``, a wrong length, a value out of
-        range or an unavailable action :class:`~smac_hard_gym.actions.InvalidActionError` (a ``ValueError``), and
+        range or an unavailable action :class:`~smac_hard_gym.smac.actions.InvalidActionError` (a ``ValueError``), and
         the env is left as it was. Stepping before ``reset()`` or after the episode ended raises
-        :class:`~smac_hard_gym.actions.ResetNeededError`."""
+        :class:`~smac_hard_gym.smac.actions.ResetNeededError`."""
         if self._needs_reset:
             raise ResetNeededError("call reset() before step(): the episode " +
                                    ("has not started" if self._episode_count == 0 else "is over"))
