@@ -54,6 +54,41 @@ def spawn_centre(groups: tuple[UnitGroup, ...]) -> np.ndarray:
     return (points * counts[:, None]).sum(axis=0) / counts.sum()
 
 
+class lazy_property(cached_property):
+    """:func:`functools.cached_property` without its lock: computed on first access, then stored in the instance's
+    ``__dict__`` (which later lookups find first). Python 3.11's cached_property takes an RLock on every first
+    access, a large share of a B=1 script step that reads a dozen fresh attributes."""
+
+    def __get__(self, instance, owner=None):
+        if instance is None:
+            return self
+        value = self.func(instance)
+        instance.__dict__[self.attrname] = value
+        return value
+
+
+# Per-map geometry of each side, keyed by the spec object's identity (the spec is kept in the entry, so an id is
+# never reused while its entry lives): computed once per map and side instead of once per view.
+_GEOMETRY: dict[tuple[int, int], tuple[MapSpec, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
+def _side_geometry(spec: MapSpec, side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(own spawn, enemy spawn, forward) of ``side`` on ``spec``, read-only (2,) arrays shared by every view."""
+    entry = _GEOMETRY.get((id(spec), side))
+    if entry is None or entry[0] is not spec:
+        own = spawn_centre(spec.red if side == RED else spec.blue)
+        enemy = spawn_centre(spec.blue if side == RED else spec.red)
+        d = enemy - own
+        norm = float(np.hypot(d[0], d[1]))
+        forward = d / norm if norm > 1e-9 else np.array([1.0, 0.0])
+        for a in (own, enemy, forward):
+            a.flags.writeable = False
+        if len(_GEOMETRY) >= 256:
+            _GEOMETRY.clear()
+        entry = _GEOMETRY[(id(spec), side)] = (spec, own, enemy, forward)
+    return entry[1], entry[2], entry[3]
+
+
 def frozen_copy(array: np.ndarray) -> np.ndarray:
     """A read-only copy of ``array`` (what untrusted scripts are handed)."""
     out = np.array(array, copy=True)
@@ -126,22 +161,21 @@ class SideView:
         return self.own.start + k
 
     # Map geometry from this side's point of view (fixed for the view's life).
-    @cached_property
+    # Computed once per map and side (see _side_geometry) and shared read-only by every view of it.
+    @lazy_property
     def own_spawn(self) -> np.ndarray:
-        """This side's spawn point (count-weighted mean of its groups), shape (2,)."""
-        return spawn_centre(self.spec.red if self.side == RED else self.spec.blue)
+        """This side's spawn point (count-weighted mean of its groups), shape (2,), read-only."""
+        return _side_geometry(self.spec, self.side)[0]
 
-    @cached_property
+    @lazy_property
     def enemy_spawn(self) -> np.ndarray:
-        """The other side's spawn point, shape (2,)."""
-        return spawn_centre(self.spec.blue if self.side == RED else self.spec.red)
+        """The other side's spawn point, shape (2,), read-only."""
+        return _side_geometry(self.spec, self.side)[1]
 
-    @cached_property
+    @lazy_property
     def forward(self) -> np.ndarray:
-        """Unit vector from this side's spawn toward the enemy's (the direction of advance)."""
-        d = self.enemy_spawn - self.own_spawn
-        norm = float(np.hypot(d[0], d[1]))
-        return d / norm if norm > 1e-9 else np.array([1.0, 0.0])
+        """Unit vector from this side's spawn toward the enemy's (the direction of advance), read-only."""
+        return _side_geometry(self.spec, self.side)[2]
 
     def _field(self, name: str, which: slice) -> np.ndarray:
         return getattr(self.state, name)[:, which]

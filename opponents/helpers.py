@@ -19,10 +19,15 @@ battle. Indices are side-local (0-based within own or enemy units); :class:`Orde
 
 from __future__ import annotations
 
-from functools import cached_property, lru_cache
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
+
+try:  # the clip ufunc itself: np.clip's Python wrapper costs more than the clipping on a script's tiny arrays
+    from numpy._core.umath import clip as _clip
+except ImportError:  # numpy < 2
+    from numpy.core.umath import clip as _clip
 
 from smac_hard_gym.engine.state import (
     CMD_ATTACK,
@@ -36,7 +41,7 @@ from smac_hard_gym.engine.state import (
     Commands,
 )
 from smac_hard_gym.maps import MapSpec
-from smac_hard_gym.opponents.api import RED, Script, SideView
+from smac_hard_gym.opponents.api import RED, Script, SideView, lazy_property
 from smac_hard_gym.units import BIO, STATS, UNITS, WEAPON_HEAL, S
 
 __all__ = [
@@ -61,6 +66,20 @@ _BASE_NAMES = np.array([u.base for u in UNITS])
 _HP_MAX = STATS[:, S["health"]] + STATS[:, S["shield"]]
 _HEALTH_MAX = STATS[:, S["health"]]
 _HEALABLE = ((STATS[:, S["attributes"]].astype(np.int64) & BIO) != 0) & (STATS[:, S["is_air"]] == 0)
+_any = np.logical_or.reduce  # ``a.any(axis)`` without the method's Python wrapper (same result)
+_sum = np.add.reduce  # ``a.sum(axis)`` likewise (same dtype rules and summation order)
+_ALL_ROWS = np.zeros(1, dtype=np.intp)  # the rows of a one-battle batch (read-only, shared)
+_ALL_ROWS.flags.writeable = False
+_HAS_HEALER: dict[bytes, bool] = {}  # unit-type row (bytes) -> whether any of its types heals
+
+
+def _has_healer(types: np.ndarray) -> bool:
+    """Whether any unit type of the (1, n) row ``types`` is a healer (cached per row: a map fixes it)."""
+    key = types.tobytes()
+    found = _HAS_HEALER.get(key)
+    if found is None:
+        found = _HAS_HEALER[key] = bool(_HEALER[types].any())
+    return found
 
 
 def of_kind(types: np.ndarray, *bases: str) -> np.ndarray:
@@ -97,8 +116,7 @@ class Frame:
 
     def _gather(self, name: str, which: slice) -> np.ndarray:
         block = getattr(self.view.state, name)[self.index, which]
-        if block.base is not None:  # a view of the live state: scripts must not write through it
-            block = block.view()
+        if block.base is not None:  # a view of the live state (a fresh view object): scripts must not write it
             block.flags.writeable = False
         return block
 
@@ -110,68 +128,69 @@ class Frame:
 
     @property
     def size(self) -> int:
-        return int(self.rows.size)
+        return self.rows.size
 
-    @cached_property
+    @lazy_property
     def step(self) -> np.ndarray:
         """Env steps since each row's reset, (R,)."""
-        return self.view.episode_step[self.rows]
+        step = self.view.episode_step
+        return step.copy() if self.rows is _ALL_ROWS else step[self.rows]
 
     # Own units (R, n). A map fixes the unit type of every slot, so types and per-type stats are (1, n) rows that
     # broadcast against the (R, n) arrays.
-    own_type = cached_property(lambda self: self.view.state.utype[0:1, self.view.own])
-    own_alive = cached_property(lambda self: self._own("alive"))
-    own_x = cached_property(lambda self: self._own("x"))
-    own_y = cached_property(lambda self: self._own("y"))
-    own_health = cached_property(lambda self: self._own("health"))
-    own_shield = cached_property(lambda self: self._own("shield"))
-    own_energy = cached_property(lambda self: self._own("energy"))
-    own_cooldown = cached_property(lambda self: self._own("cooldown"))
-    own_hp = cached_property(lambda self: self.own_health + self.own_shield)
-    own_hp_max = cached_property(lambda self: _HP_MAX[self.own_type])
-    own_hp_frac = cached_property(lambda self: self.own_hp / self.own_hp_max)
-    own_health_max = cached_property(lambda self: _HEALTH_MAX[self.own_type])
-    own_health_frac = cached_property(lambda self: self.own_health / self.own_health_max)  # hull only
-    own_radius = cached_property(lambda self: STATS[self.own_type, S["radius"]])
-    own_range = cached_property(lambda self: STATS[self.own_type, S["range"]])
-    own_speed = cached_property(lambda self: STATS[self.own_type, S["speed"]])
-    own_healer = cached_property(lambda self: _HEALER[self.own_type] & self.own_alive)
+    own_type = lazy_property(lambda self: self.view.state.utype[0:1, self.view.own])
+    own_alive = lazy_property(lambda self: self._own("alive"))
+    own_x = lazy_property(lambda self: self._own("x"))
+    own_y = lazy_property(lambda self: self._own("y"))
+    own_health = lazy_property(lambda self: self._own("health"))
+    own_shield = lazy_property(lambda self: self._own("shield"))
+    own_energy = lazy_property(lambda self: self._own("energy"))
+    own_cooldown = lazy_property(lambda self: self._own("cooldown"))
+    own_hp = lazy_property(lambda self: self.own_health + self.own_shield)
+    own_hp_max = lazy_property(lambda self: _HP_MAX[self.own_type])
+    own_hp_frac = lazy_property(lambda self: self.own_hp / self.own_hp_max)
+    own_health_max = lazy_property(lambda self: _HEALTH_MAX[self.own_type])
+    own_health_frac = lazy_property(lambda self: self.own_health / self.own_health_max)  # hull only
+    own_radius = lazy_property(lambda self: STATS[self.own_type, S["radius"]])
+    own_range = lazy_property(lambda self: STATS[self.own_type, S["range"]])
+    own_speed = lazy_property(lambda self: STATS[self.own_type, S["speed"]])
+    own_healer = lazy_property(lambda self: _HEALER[self.own_type] & self.own_alive)
     # Enemy units (R, m); types and stats (1, m).
-    enemy_type = cached_property(lambda self: self.view.state.utype[0:1, self.view.enemy])
-    enemy_alive = cached_property(lambda self: self._enemy("alive"))
-    enemy_x = cached_property(lambda self: self._enemy("x"))
-    enemy_y = cached_property(lambda self: self._enemy("y"))
-    enemy_health = cached_property(lambda self: self._enemy("health"))
-    enemy_shield = cached_property(lambda self: self._enemy("shield"))
-    enemy_cooldown = cached_property(lambda self: self._enemy("cooldown"))
-    enemy_hp = cached_property(lambda self: self.enemy_health + self.enemy_shield)
-    enemy_hp_max = cached_property(lambda self: _HP_MAX[self.enemy_type])
-    enemy_hp_frac = cached_property(lambda self: self.enemy_hp / self.enemy_hp_max)
-    enemy_health_max = cached_property(lambda self: _HEALTH_MAX[self.enemy_type])
-    enemy_health_frac = cached_property(lambda self: self.enemy_health / self.enemy_health_max)  # hull only
-    enemy_radius = cached_property(lambda self: STATS[self.enemy_type, S["radius"]])
-    enemy_range = cached_property(lambda self: STATS[self.enemy_type, S["range"]])
-    enemy_speed = cached_property(lambda self: STATS[self.enemy_type, S["speed"]])
+    enemy_type = lazy_property(lambda self: self.view.state.utype[0:1, self.view.enemy])
+    enemy_alive = lazy_property(lambda self: self._enemy("alive"))
+    enemy_x = lazy_property(lambda self: self._enemy("x"))
+    enemy_y = lazy_property(lambda self: self._enemy("y"))
+    enemy_health = lazy_property(lambda self: self._enemy("health"))
+    enemy_shield = lazy_property(lambda self: self._enemy("shield"))
+    enemy_cooldown = lazy_property(lambda self: self._enemy("cooldown"))
+    enemy_hp = lazy_property(lambda self: self.enemy_health + self.enemy_shield)
+    enemy_hp_max = lazy_property(lambda self: _HP_MAX[self.enemy_type])
+    enemy_hp_frac = lazy_property(lambda self: self.enemy_hp / self.enemy_hp_max)
+    enemy_health_max = lazy_property(lambda self: _HEALTH_MAX[self.enemy_type])
+    enemy_health_frac = lazy_property(lambda self: self.enemy_health / self.enemy_health_max)  # hull only
+    enemy_radius = lazy_property(lambda self: STATS[self.enemy_type, S["radius"]])
+    enemy_range = lazy_property(lambda self: STATS[self.enemy_type, S["range"]])
+    enemy_speed = lazy_property(lambda self: STATS[self.enemy_type, S["speed"]])
 
-    @cached_property
+    @lazy_property
     def dist(self) -> np.ndarray:
         """Centre distance from each own unit to each enemy, (R, n, m)."""
         dx = self.enemy_x[:, None, :] - self.own_x[:, :, None]
         dy = self.enemy_y[:, None, :] - self.own_y[:, :, None]
         return np.sqrt(dx * dx + dy * dy)
 
-    @cached_property
+    @lazy_property
     def edge(self) -> np.ndarray:
         """Edge-to-edge distance (what weapon ranges measure), (R, n, m)."""
         return self.dist - self.own_radius[:, :, None] - self.enemy_radius[:, None, :]
 
-    @cached_property
+    @lazy_property
     def hittable(self) -> np.ndarray:
         """Own unit i (alive, armed) can damage enemy k (alive, right plane), (R, n, m)."""
         can = CAN_HIT[self.own_type[:, :, None], self.enemy_type[:, None, :]]
         return can & self.own_alive[:, :, None] & self.enemy_alive[:, None, :]
 
-    @cached_property
+    @lazy_property
     def targetable(self) -> np.ndarray:
         """``hittable``, and for units that cannot move (spine crawler) only targets already in range."""
         static = self.own_speed <= 0
@@ -179,17 +198,17 @@ class Frame:
             return self.hittable
         return self.hittable & (~static[:, :, None] | (self.edge <= self.own_range[:, :, None]))
 
-    @cached_property
+    @lazy_property
     def own_centroid(self) -> tuple[np.ndarray, np.ndarray]:
         """Mean position of alive own units, (R,) each (the side's spawn where none is alive)."""
         return centroid(self.own_x, self.own_y, self.own_alive, self.view.own_spawn)
 
-    @cached_property
+    @lazy_property
     def enemy_centroid(self) -> tuple[np.ndarray, np.ndarray]:
         """Mean position of alive enemies, (R,) each (the enemy spawn where none is alive)."""
         return centroid(self.enemy_x, self.enemy_y, self.enemy_alive, self.view.enemy_spawn)
 
-    @cached_property
+    @lazy_property
     def forward(self) -> np.ndarray:
         """Unit vector of advance (own spawn toward enemy spawn), (2,)."""
         return self.view.forward
@@ -197,7 +216,7 @@ class Frame:
     # SMAC-HARD's frame. Its scripts always play blue and hard-code blue's map coordinates; red plays them
     # reflected through the midpoint of the two spawns, which swaps the spawns (the map centre on every map with
     # mirrored spawns). The reflection keeps distances, so thresholds carry over unchanged.
-    @cached_property
+    @lazy_property
     def reflection(self) -> np.ndarray | None:
         """None for blue; for red the (2,) point S of the reflection (x, y) -> (S - x, S - y)."""
         return None if self.view.side != RED else self.view.own_spawn + self.view.enemy_spawn
@@ -207,10 +226,10 @@ class Frame:
         s = self.reflection
         return (x, y) if s is None else (s[0] - x, s[1] - y)
 
-    own_hx = cached_property(lambda self: self.blue_frame(self.own_x, self.own_y)[0])
-    own_hy = cached_property(lambda self: self.blue_frame(self.own_x, self.own_y)[1])
-    enemy_hx = cached_property(lambda self: self.blue_frame(self.enemy_x, self.enemy_y)[0])
-    enemy_hy = cached_property(lambda self: self.blue_frame(self.enemy_x, self.enemy_y)[1])
+    own_hx = lazy_property(lambda self: self.blue_frame(self.own_x, self.own_y)[0])
+    own_hy = lazy_property(lambda self: self.blue_frame(self.own_x, self.own_y)[1])
+    enemy_hx = lazy_property(lambda self: self.blue_frame(self.enemy_x, self.enemy_y)[0])
+    enemy_hy = lazy_property(lambda self: self.blue_frame(self.enemy_x, self.enemy_y)[1])
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -219,9 +238,8 @@ class Frame:
 
 def argmin_masked(values: np.ndarray, mask: np.ndarray, axis: int = -1) -> np.ndarray:
     """Index of the smallest ``values`` where ``mask`` holds, along ``axis``; -1 where the mask is empty."""
-    masked = np.where(mask, values, np.inf)
-    idx = masked.argmin(axis=axis)
-    return np.where(mask.any(axis=axis), idx, -1)
+    idx = np.where(mask, values, np.inf).argmin(axis=axis)
+    return np.where(_any(mask, axis=axis), idx, -1)
 
 
 def nearest(dist: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -281,10 +299,11 @@ def within(dist: np.ndarray, reach: np.ndarray | float) -> np.ndarray:
 def centroid(x: np.ndarray, y: np.ndarray, mask: np.ndarray,
              fallback: np.ndarray | tuple[float, float] = (16.0, 16.0)) -> tuple[np.ndarray, np.ndarray]:
     """Mean of the (R, n) points where ``mask`` holds, per row; ``fallback`` (x, y) for rows with none."""
-    count = mask.sum(axis=-1)
+    count = _sum(mask, axis=-1)
     safe = np.maximum(count, 1)
-    cx = np.where(count > 0, (x * mask).sum(axis=-1) / safe, fallback[0])
-    cy = np.where(count > 0, (y * mask).sum(axis=-1) / safe, fallback[1])
+    some = count > 0
+    cx = np.where(some, _sum(x * mask, axis=-1) / safe, fallback[0])
+    cy = np.where(some, _sum(y * mask, axis=-1) / safe, fallback[1])
     return cx, cy
 
 
@@ -352,7 +371,7 @@ def clamp_to_map(x: np.ndarray, y: np.ndarray, spec: MapSpec, margin: float = 0.
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Points pulled inside the map rectangle, ``margin`` from its border."""
     mx, my = spec.size
-    return np.clip(x, margin, mx - margin), np.clip(y, margin, my - margin)
+    return _clip(x, margin, mx - margin), _clip(y, margin, my - margin)
 
 
 def is_pathable(x: np.ndarray, y: np.ndarray, spec: MapSpec) -> np.ndarray:
@@ -461,23 +480,29 @@ class Orders:
 
     def __init__(self, frame: Frame) -> None:
         self.frame = frame
-        shape = (frame.size, frame.n_own)
-        self.kind = np.zeros(shape, dtype=np.int8)
-        self.target = np.full(shape, NO_UNIT, dtype=np.int32)
-        self.x = np.zeros(shape, dtype=np.float64)
-        self.y = np.zeros(shape, dtype=np.float64)
+        self.kind = np.zeros((frame.size, frame.n_own), dtype=np.int8)
         self._targets = self._points = False  # which parts of the plan hold data, so write skips the rest
+
+    # Allocated on first use (most plans give only some kinds of order).
+    target = lazy_property(lambda self: np.full(self.kind.shape, NO_UNIT, dtype=np.int32))
+    x = lazy_property(lambda self: np.zeros(self.kind.shape, dtype=np.float64))
+    y = lazy_property(lambda self: np.zeros(self.kind.shape, dtype=np.float64))
 
     def _mask(self, units: np.ndarray) -> np.ndarray:
         return units & self.frame.own_alive  # own_alive is (R, n): the result always has the plan's shape
 
     def _full(self, values: np.ndarray | float) -> np.ndarray:
         values = np.asarray(values)
-        return values if values.shape == self.kind.shape else np.broadcast_to(values, self.kind.shape)
+        shape = self.kind.shape
+        if values.shape == shape:
+            return values
+        full = np.empty(shape, dtype=values.dtype)  # what np.broadcast_to reads, without its Python overhead
+        full[...] = values
+        return full
 
     def _point(self, kind: int, units: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
         m = self._mask(units)
-        if not m.any():
+        if not _any(m, axis=None):
             return
         x, y = clamp_to_map(self._full(x), self._full(y), self.frame.spec, 0.0)
         self.kind[m] = kind
@@ -547,8 +572,10 @@ def support_healers(orders: Orders, frame: Frame, follow: tuple[np.ndarray, np.n
     """Healers (medivacs) heal the most injured own biological ground unit; with nobody hurt they move to
     ``follow`` (R,) x and y, by default the centre of the own units that are not healers. It overrides any order
     given to healers, so call it after the rest of the plan."""
+    if not _has_healer(frame.own_type):  # no healer type on this side (most maps): nothing to gather
+        return
     healers = frame.own_healer
-    if not healers.any():
+    if not _any(healers, axis=None):
         return
     health_max = STATS[frame.own_type, S["health"]]
     eligible = _HEALABLE[frame.own_type] & frame.own_alive & (frame.own_health < health_max)
@@ -592,9 +619,14 @@ class BatchScript(Script):
         """Fill episode memory for ``battles`` (called after the memory is cleared)."""
 
     def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
-        rows = np.flatnonzero(active)
-        if rows.size == 0:
-            return
+        if active.shape[0] == 1:  # one battle: its row, or nothing to do
+            if not active[0]:
+                return
+            rows = _ALL_ROWS
+        else:
+            rows = np.flatnonzero(active)
+            if rows.size == 0:
+                return
         frame = Frame(view, rows)
         orders = Orders(frame)
         self.plan(frame, orders)

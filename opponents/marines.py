@@ -16,6 +16,7 @@ from smac_hard_gym.opponents.helpers import (
     Frame,
     Memory,
     Orders,
+    _any,
     argmin_masked,
     from_blue_frame,
     list_rank,
@@ -31,12 +32,12 @@ LINE_X, LINE_Y = 25.0, 16.0  # SMAC-HARD's formation line, blue side
 def _centre_distance(frame: Frame, cx: np.ndarray, cy: np.ndarray) -> np.ndarray:
     """(R,) distance from (cx, cy) to the nearest alive enemy (inf where none)."""
     d = np.hypot(frame.enemy_x - cx[:, None], frame.enemy_y - cy[:, None])
-    return np.where(frame.enemy_alive, d, np.inf).min(axis=1)
+    return np.minimum.reduce(np.where(frame.enemy_alive, d, np.inf), axis=1)
 
 
 def _live(frame: Frame) -> np.ndarray:
     """(R,) rows where both sides have a unit alive (SMAC-HARD's scripts return no actions otherwise)."""
-    return frame.own_alive.any(axis=1) & frame.enemy_alive.any(axis=1)
+    return _any(frame.own_alive, axis=1) & _any(frame.enemy_alive, axis=1)
 
 
 class LineAdvance(BatchScript):
@@ -72,7 +73,7 @@ class LineAdvance(BatchScript):
         self.memory = Memory(engaged=((), bool, False), last_frac=(("own",), np.float64, 1.0))
 
     def plan(self, frame: Frame, orders: Orders) -> None:
-        rows = frame.rows
+        rows = frame.index  # memory rows: a slice (a view, no gather) when every battle is active
         live = _live(frame)
         alive = frame.own_alive & live[:, None]
         hx, hy = frame.own_hx, frame.own_hy
@@ -82,21 +83,22 @@ class LineAdvance(BatchScript):
         engaged = self.memory.engaged[rows] | (live & ~forming & contact)
         self.memory.engaged[rows] = engaged
 
-        if forming.any():
+        if _any(forming, axis=None):
             k = list_rank(frame.own_alive)
             n = frame.own_alive.sum(axis=1, keepdims=True)
             orders.move(alive & forming[:, None], *from_blue_frame(frame, LINE_X, LINE_Y + k - n / 2.0))
         advance = alive & (~forming & ~engaged)[:, None]
-        orders.move(advance, *from_blue_frame(frame, hx - 1.0, hy))
+        if _any(advance, axis=None):
+            orders.move(advance, *from_blue_frame(frame, hx - 1.0, hy))
 
         frac = frame.own_health_frac
         fight = alive & (~forming & engaged)[:, None]
-        if fight.any():
+        if _any(fight, axis=None):
             if self.focus == "front":
                 target = argmin_masked(np.abs(frame.enemy_hx - cx[:, None]), frame.enemy_alive)
             else:
                 target = argmin_masked(frame.enemy_health, frame.enemy_alive)
-            orders.attack(fight, np.broadcast_to(target[:, None], fight.shape))
+            orders.attack(fight, target[:, None])
             hurt = (frac != self.memory.last_frac[rows]) & (frac < self.wounded_fraction)
             orders.move(fight & hurt, *from_blue_frame(frame, hx + 1.0, hy))
         # SMAC-HARD remembers the fraction of the marines it saw this step (rows it returned early from keep theirs).
@@ -143,7 +145,7 @@ class ColumnAdvance(BatchScript):
         hx, hy = frame.own_hx, frame.own_hy
         forming = frame.step < FORM_STEPS
 
-        if forming.any():
+        if _any(forming, axis=None):
             by_y = np.argsort(np.where(frame.own_alive, hy, np.inf), axis=1, kind="stable")
             k = np.argsort(by_y, axis=1, kind="stable")  # rank by y; the dead sort last and get no order
             n = frame.own_alive.sum(axis=1, keepdims=True)
@@ -154,7 +156,7 @@ class ColumnAdvance(BatchScript):
         orders.move(alive & (~forming & far)[:, None], *from_blue_frame(frame, hx - self.advance_step, hy))
 
         fight = alive & (~forming & ~far)[:, None]
-        if not fight.any():
+        if not _any(fight, axis=None):
             return
         if self.mode == "centroid":
             ex, ey = frame.enemy_centroid

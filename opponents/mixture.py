@@ -92,6 +92,11 @@ class Mixture(Script):
                 script.reset(view, mine, rngs)
 
     def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
+        if active.shape[0] == 1 and self.choice.shape[0] == 1:  # one battle (a single env): no masks to build
+            k = int(self.choice[0])
+            if k >= 0 and active[0]:
+                self.scripts[k].act(view, commands, active.astype(bool))
+            return
         for k, script in enumerate(self.scripts):
             mine = active & (self.choice == k)
             if mine.any():
