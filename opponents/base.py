@@ -122,8 +122,13 @@ class BaseScript(Script):
     description = ("SMAC-HARD's base_script: attack-move to a fixed point (the learner's spawn on marine and protoss "
                    "maps) re-issued every step; no orders on 2m_vs_1z, 2s_vs_1sc, 2c_vs_64zg")
 
+    _point_of: tuple[object, int, tuple[float, float] | None] | None = None  # (spec, side, point), set by act
+
     def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
-        point = base_point(view)
+        cached = self._point_of  # base_point is fixed per map and side: worked out once, not every step
+        if cached is None or cached[0] is not view.spec or cached[1] != view.side:
+            cached = self._point_of = (view.spec, view.side, base_point(view))
+        point = cached[2]
         if point is None:
             return
         own = view.own

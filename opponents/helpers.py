@@ -73,6 +73,13 @@ _ALL_ROWS.flags.writeable = False
 _HAS_HEALER: dict[bytes, bool] = {}  # unit-type row (bytes) -> whether any of its types heals
 
 
+def _expand(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """The values ``np.broadcast_to(values, shape)`` reads, as a fresh array (without broadcast_to's Python cost)."""
+    full = np.empty(shape, dtype=values.dtype)
+    full[...] = values
+    return full
+
+
 def _has_healer(types: np.ndarray) -> bool:
     """Whether any unit type of the (1, n) row ``types`` is a healer (cached per row: a map fixes it)."""
     key = types.tobytes()
@@ -82,9 +89,21 @@ def _has_healer(types: np.ndarray) -> bool:
     return found
 
 
+_OF_KIND: dict[tuple, np.ndarray] = {}  # (types' bytes, shape, dtype, bases) -> mask
+
+
 def of_kind(types: np.ndarray, *bases: str) -> np.ndarray:
     """Mask of units whose type is one of the standard units ``bases`` ("marine" covers marine and marine_rl)."""
-    return np.isin(_BASE_NAMES[types], bases)
+    # Scripts ask this of the same (1, n) type row every step: the mask is cached per row and handed out as a copy
+    # (np.isin costs tens of microseconds; a copy well under one).
+    types = np.asarray(types)
+    key = (types.tobytes(), types.shape, types.dtype.str, bases)
+    mask = _OF_KIND.get(key)
+    if mask is None:
+        if len(_OF_KIND) >= 1024:
+            _OF_KIND.clear()
+        mask = _OF_KIND[key] = np.isin(_BASE_NAMES[types], bases)
+    return mask.copy()
 
 
 def slots_of(view: SideView, *bases: str) -> np.ndarray:
@@ -300,6 +319,8 @@ def centroid(x: np.ndarray, y: np.ndarray, mask: np.ndarray,
              fallback: np.ndarray | tuple[float, float] = (16.0, 16.0)) -> tuple[np.ndarray, np.ndarray]:
     """Mean of the (R, n) points where ``mask`` holds, per row; ``fallback`` (x, y) for rows with none."""
     count = _sum(mask, axis=-1)
+    if count.shape == (1,) and count[0] > 0:  # one row with points (a single battle): no fallback to blend in
+        return _sum(x * mask, axis=-1) / count, _sum(y * mask, axis=-1) / count
     safe = np.maximum(count, 1)
     some = count > 0
     cx = np.where(some, _sum(x * mask, axis=-1) / safe, fallback[0])
@@ -496,9 +517,7 @@ class Orders:
         shape = self.kind.shape
         if values.shape == shape:
             return values
-        full = np.empty(shape, dtype=values.dtype)  # what np.broadcast_to reads, without its Python overhead
-        full[...] = values
-        return full
+        return _expand(values, shape)
 
     def _point(self, kind: int, units: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
         m = self._mask(units)

@@ -16,6 +16,8 @@ from smac_hard_gym.opponents.helpers import (
     Frame,
     Memory,
     Orders,
+    _any,
+    _expand,
     argmin_masked,
     centroid,
     from_blue_frame,
@@ -47,7 +49,7 @@ class _MMMScript(BatchScript):
     @staticmethod
     def _sees(frame: Frame, marauder: np.ndarray) -> np.ndarray:
         """(R, n) marauders with an enemy (any, medivacs included) within 8."""
-        near = np.where(frame.enemy_alive[:, None, :], frame.dist, np.inf).min(axis=2)
+        near = np.minimum.reduce(np.where(frame.enemy_alive[:, None, :], frame.dist, np.inf), axis=2)
         return marauder & (near <= CONTACT)
 
     def _advance_or_fight(self, frame: Frame, orders: Orders, formed: np.ndarray, blind: np.ndarray) -> np.ndarray:
@@ -67,11 +69,11 @@ class _MMMScript(BatchScript):
         alive = frame.own_alive
         mx, _ = centroid(frame.own_hx, frame.own_hy, marine)
         ax, _ = centroid(frame.own_hx, frame.own_hy, alive)
-        front = np.where(marine.any(axis=1), mx, ax) - 2.0
+        front = np.where(_any(marine, axis=1), mx, ax) - 2.0
         ahead = frame.own_hx < front[:, None]
         orders.attack(marauder & fight[:, None] & ahead, target)
         orders.move(marauder & fight[:, None] & ~ahead,
-                    *from_blue_frame(frame, np.broadcast_to(front[:, None], alive.shape), frame.own_hy))
+                    *from_blue_frame(frame, _expand(front[:, None], alive.shape), frame.own_hy))
 
     def _medivac(self, frame: Frame, orders: Orders, marine: np.ndarray, marauder: np.ndarray,
                  medivac: np.ndarray, fight: np.ndarray) -> None:
@@ -79,13 +81,13 @@ class _MMMScript(BatchScript):
         1 east of the army's centre."""
         units = medivac & fight[:, None]
         patients = marine | marauder
-        if not units.any() or not patients.any():
+        if not _any(units, axis=None) or not _any(patients, axis=None):
             return
         listed = np.where(of_kind(frame.own_type, "marine"), 0, frame.n_own) + np.arange(frame.n_own)
-        patient = lowest(frame.own_health_frac, patients, tie=np.broadcast_to(listed, patients.shape))
+        patient = lowest(frame.own_health_frac, patients, tie=listed)  # (n,) broadcasts over the rows
         hurt = np.take_along_axis(frame.own_health_frac, np.maximum(patient, 0)[:, None], axis=1)[:, 0] < 1.0
         hurt &= patient >= 0
-        orders.heal(units & hurt[:, None], np.broadcast_to(patient[:, None], units.shape))
+        orders.heal(units & hurt[:, None], patient[:, None])
         cx, cy = centroid(frame.own_hx, frame.own_hy, frame.own_alive)
         orders.move(units & ~hurt[:, None], *from_blue_frame(frame, cx[:, None] + 1.0, cy[:, None]))
 
@@ -117,28 +119,28 @@ class MMMFormation(_MMMScript):
     def plan(self, frame: Frame, orders: Orders) -> None:
         alive = frame.own_alive
         marine, marauder, medivac = self._kinds(frame)
-        live = (marine | marauder).any(axis=1) & frame.enemy_alive.any(axis=1)
+        live = _any(marine | marauder, axis=1) & _any(frame.enemy_alive, axis=1)
         forming = live & (frame.step < FORM_STEPS)
-        if forming.any():
+        if _any(forming, axis=None):
             cx, _ = centroid(frame.own_hx, frame.own_hy, marine | marauder)
             offset = np.where(of_kind(frame.own_type, "marauder"), -2.0,
                               np.where(of_kind(frame.own_type, "medivac"), 1.0, 0.0))
             orders.move(alive & forming[:, None], *from_blue_frame(frame, cx[:, None] + offset, frame.own_hy))
 
-        blind = (marauder & ~self._sees(frame, marauder)).any(axis=1)  # some marauder sees no enemy
+        blind = _any(marauder & ~self._sees(frame, marauder), axis=1)  # some marauder sees no enemy
         fight = self._advance_or_fight(frame, orders, live & ~forming, blind)
-        if not fight.any():
+        if not _any(fight, axis=None):
             return
 
         e_alive = frame.enemy_alive
         pool = e_alive
         for kind in ("marauder", "marine"):  # the last kind with units alive wins: marines, else marauders
             of = e_alive & of_kind(frame.enemy_type, kind)
-            pool = np.where(of.any(axis=1)[:, None], of, pool)
+            pool = np.where(_any(of, axis=1)[:, None], of, pool)
         cx, cy = frame.own_centroid
         to_centre = np.hypot(frame.enemy_x - cx[:, None], frame.enemy_y - cy[:, None])
         target = weakest_of_nearest(to_centre[:, None, :], frame.enemy_hp, pool[:, None, :], k=3)[:, 0]
-        common = np.broadcast_to(target[:, None], alive.shape)
+        common = target[:, None]  # one target per row; Orders broadcasts it over the units
         orders.attack(marine & fight[:, None], common)
         self._front(frame, orders, marine, marauder, fight, common)
         self._medivac(frame, orders, marine, marauder, medivac, fight)
@@ -170,9 +172,9 @@ class MarauderFront(_MMMScript):
 
     def plan(self, frame: Frame, orders: Orders) -> None:
         marine, marauder, medivac = self._kinds(frame)
-        live = (marine | marauder).any(axis=1) & frame.enemy_alive.any(axis=1)
+        live = _any(marine | marauder, axis=1) & _any(frame.enemy_alive, axis=1)
         forming = live & (frame.step < FORM_STEPS)
-        if forming.any():
+        if _any(forming, axis=None):
             cx, cy = centroid(frame.own_hx, frame.own_hy, marine | marauder)
             hy = frame.own_hy
             k = list_rank(marine)
@@ -184,9 +186,9 @@ class MarauderFront(_MMMScript):
                             *from_blue_frame(frame, cx[:, None] - 2.0, cy[:, None] + side))
             orders.move(medivac & forming[:, None], *from_blue_frame(frame, cx[:, None] + 1.0, hy))
 
-        all_blind = ~self._sees(frame, marauder).any(axis=1)
+        all_blind = ~_any(self._sees(frame, marauder), axis=1)
         fight = self._advance_or_fight(frame, orders, live & ~forming, all_blind)
-        if not fight.any():
+        if not _any(fight, axis=None):
             return
 
         e_alive = frame.enemy_alive
@@ -195,6 +197,6 @@ class MarauderFront(_MMMScript):
         ground = e_alive & of_kind(frame.enemy_type, "marine", "marauder")
         listed = np.where(of_kind(frame.enemy_type, "marine"), 0, m) + np.arange(m)  # marines, then marauders
         near = lowest(frame.dist, frame.targetable & ground[:, None, :],
-                      tie=np.broadcast_to(listed[:, None, :], frame.dist.shape))
+                      tie=listed)  # (m,) broadcasts over rows and units
         self._front(frame, orders, marine, marauder, fight, near)
         self._medivac(frame, orders, marine, marauder, medivac, fight)

@@ -16,6 +16,7 @@ from smac_hard_gym.opponents.helpers import (
     Frame,
     Memory,
     Orders,
+    _any,
     argmin_masked,
     centroid,
     from_blue_frame,
@@ -75,7 +76,7 @@ class StalkerRetreat(BatchScript):
         orders.attack(stalker | zealot, near)
         _retreat_home(frame, orders, stalker & (d <= SHOOT_RANGE) & (frame.own_health_frac < 0.5))
         ex, ey = frame.enemy_centroid
-        all_in = _enemy_weak(frame) & frame.enemy_alive.any(axis=1)
+        all_in = _enemy_weak(frame) & _any(frame.enemy_alive, axis=1)
         orders.attack_move(alive & all_in[:, None], ex[:, None], ey[:, None])
 
 
@@ -105,8 +106,8 @@ class CenterFocus(BatchScript):
         pick = np.where(zealot_pick >= 0, zealot_pick, np.where(stalker_pick >= 0, stalker_pick, any_pick))
         stalker = of_kind(frame.own_type, "stalker") & alive
         zealot = of_kind(frame.own_type, "zealot") & alive
-        orders.attack(stalker, np.broadcast_to(pick[:, None], alive.shape))
-        orders.attack(zealot, np.broadcast_to(any_pick[:, None], alive.shape))
+        orders.attack(stalker, pick[:, None])  # Orders broadcasts (R, 1) over the units
+        orders.attack(zealot, any_pick[:, None])
         _retreat_home(frame, orders, (stalker | zealot) & (frame.own_health_frac < 0.5))
 
 
