@@ -1,11 +1,20 @@
-"""Child processes never outlive their parent: the one Linux call every kind of child makes at its start."""
+"""Child processes never outlive their parent: the one Linux call every kind of child makes at its start.
+
+:func:`die_with_parent` is called first thing in a child (worker processes, sandboxed scripts, benchmark probes);
+:func:`die_with_parent_hook` builds the ``preexec_fn`` for ``subprocess.Popen`` when the child runs another program
+(StarCraft II), resolving ``prctl`` before the fork so that nothing is loaded between fork and exec.
+"""
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
+from collections.abc import Callable
 
-__all__ = ["die_with_parent"]
+__all__ = ["die_with_parent", "die_with_parent_hook"]
+
+_PR_SET_PDEATHSIG = 1
 
 
 def die_with_parent() -> None:
@@ -14,6 +23,31 @@ def die_with_parent() -> None:
         try:
             import ctypes
 
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL))
         except (OSError, AttributeError):
             pass
+
+
+def die_with_parent_hook() -> Callable[[], None] | None:
+    """Linux: a ``preexec_fn`` that makes the child die with the calling process (and exit at once if that one died
+    before the signal was armed); None elsewhere, or when ``prctl`` cannot be found.
+
+    The kernel sends the signal when the *thread* that forked the child ends, so start such children from a thread
+    that lives as long as the process (the main thread).
+    """
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        import ctypes
+
+        prctl = ctypes.CDLL(None, use_errno=True).prctl  # resolved before fork: nothing to load in the child
+    except (OSError, AttributeError):
+        return None
+    parent = os.getpid()
+
+    def hook() -> None:
+        prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        if os.getppid() != parent:  # the parent died before the signal was armed
+            os._exit(1)
+
+    return hook

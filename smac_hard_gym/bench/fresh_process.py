@@ -9,8 +9,9 @@ import sys
 import time
 from typing import Any
 
-from smac_hard_gym.bench.machine import die_with_parent, peak_rss_of
+from smac_hard_gym.bench.machine import peak_rss_of
 from smac_hard_gym.bench.policy import VectorLoop
+from smac_hard_gym.lifetime import die_with_parent
 
 
 def _rss_now() -> int:

@@ -13,8 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from smac_hard_gym.lifetime import die_with_parent  # noqa: F401  (re-exported: the benchmark probes use it)
-
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
 

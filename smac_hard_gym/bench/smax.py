@@ -9,8 +9,9 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from smac_hard_gym.bench.machine import REPO_ROOT, die_with_parent
+from smac_hard_gym.bench.machine import REPO_ROOT
 from smac_hard_gym.bench.timing import Measurement
+from smac_hard_gym.lifetime import die_with_parent
 
 SMAX_MAPS = ("3m", "8m", "2s3z", "27m_vs_30m")  # the maps of ours that SMAX also has
 SMAX_SCRIPT = REPO_ROOT / "benchmarks" / "smax_bench.py"

@@ -13,7 +13,6 @@ import numpy as np
 
 # Orders a unit can be carrying out (``BattleState.order``).
 ORDER_IDLE, ORDER_MOVE, ORDER_ATTACK, ORDER_ATTACK_MOVE, ORDER_HOLD, ORDER_HEAL = 0, 1, 2, 3, 4, 5
-ORDER_NAMES = ("idle", "move", "attack", "attack_move", "hold", "heal")
 
 # Commands a controller can send (``Commands.kind``). NOOP keeps the current order.
 CMD_NOOP, CMD_STOP, CMD_HOLD, CMD_MOVE, CMD_ATTACK, CMD_ATTACK_MOVE, CMD_HEAL = 0, 1, 2, 3, 4, 5, 6
@@ -87,12 +86,6 @@ def allocate_state(batch: int, n_units: int) -> BattleState:
     for name in ("order_target", "target", "attacker", "fired_at"):
         arrays[name][:] = NO_UNIT
     return BattleState(**arrays, loop=np.zeros(batch, dtype=np.int64), rng=np.zeros(batch, dtype=np.uint64))
-
-
-def copy_battle(src: BattleState, src_index: int, dst: BattleState, dst_index: int) -> None:
-    """Copy one battle's state between two states of the same unit layout."""
-    for name in BattleState._fields:
-        getattr(dst, name)[dst_index] = getattr(src, name)[src_index]
 
 
 def state_nbytes(state: BattleState) -> int:

@@ -16,10 +16,7 @@ thread, and only from the main thread (a game started from another thread relies
 from __future__ import annotations
 
 import atexit
-import ctypes
 import os
-import signal
-import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -29,13 +26,11 @@ from typing import Any
 import websocket
 from s2clientprotocol import sc2api_pb2 as sc_pb
 
+from smac_hard_gym.lifetime import die_with_parent_hook
 from smac_hard_gym.sc2.compat import portspicker, remote_controller, run_configs
 from smac_hard_gym.sc2.errors import Sc2LaunchError
 
 __all__ = ["LaunchOptions", "GameProcess", "GamePair", "GameSetup", "launch_games", "close_all"]
-
-_PR_SET_PDEATHSIG = 1
-
 
 @dataclass(frozen=True)
 class LaunchOptions:
@@ -68,20 +63,9 @@ class GameSetup:
 
 def _death_signal_hook() -> Any:
     """A ``preexec_fn`` that makes the child die with its parent (Linux, main thread), or None."""
-    if not sys.platform.startswith("linux") or threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
         return None
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl  # resolved before fork: nothing to load in the child
-    except (OSError, AttributeError):
-        return None
-    parent = os.getpid()
-
-    def die_with_parent() -> None:
-        prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-        if os.getppid() != parent:  # the parent died before the signal was armed
-            os._exit(1)
-
-    return die_with_parent
+    return die_with_parent_hook()
 
 
 class _Controller(remote_controller.RemoteController):
