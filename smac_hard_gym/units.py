@@ -14,7 +14,7 @@ Sources (keys used in each row's ``sources``):
 - ``smac``: SMAC's own constants (``unit_max_cooldown``, ``unit_max_shield``).
 - ``lotv``: general LotV knowledge that could not be re-retrieved (marked * in the reference table).
 
-Every fact comes from ``shared/reference/smac_interface.md`` §8, which collects these sources.
+Every fact comes from ``docs/smac_interface.md`` §8, which collects these sources.
 
 Learner (red) units are SMAC's ``*_RL`` copies: passive (never auto-acquire while idle or holding, never respond when
 attacked) with SMAC's custom values (hydralisk 80 HP, medivac speed 2.75). Opponent (blue) units are standard.
@@ -48,7 +48,7 @@ class UnitSpec:
     name: str  # table key, e.g. "marine" or "marine_rl"
     sc2_name: str  # the SC2 unit name used by map files ("Marine", "Marine_RL")
     base: str  # the standard unit this row is (a variant of)
-    sc2_id: int  # standard SC2 unit type id of ``base`` (smac_interface §8)
+    sc2_id: int  # standard SC2 unit type id of ``base`` (docs/smac_interface.md §8)
     race: str  # "T", "P" or "Z"
     health: float
     shield: float
@@ -181,7 +181,7 @@ _STANDARD: list[UnitSpec] = [
     ),
 ]
 
-# SMAC's *_RL rows differ from the standard ones only where UnitData.xml says so (smac_interface §8).
+# SMAC's *_RL rows differ from the standard ones only where UnitData.xml says so (docs/smac_interface.md §8).
 _RL_OVERRIDES: dict[str, dict] = {
     "marine": {},
     "marauder": {},
@@ -242,7 +242,7 @@ _PER_SECOND_COLUMNS = ("speed", "energy_regen", "heal_rate", "regen", "shield_re
 
 
 def scan_range(spec: UnitSpec) -> float:
-    """Automatic-acquisition range, edge to edge: max(5, weapon range + 0.5) (smac_interface §9)."""
+    """Automatic-acquisition range, edge to edge: max(5, weapon range + 0.5) (docs/smac_interface.md §9)."""
     return max(5.0, spec.range + 0.5)
 
 

@@ -1,4 +1,4 @@
-"""SMAC's available actions and their decoding into engine commands (smac_interface §2)."""
+"""SMAC's available actions and their decoding into engine commands (docs/smac_interface.md §2)."""
 
 from __future__ import annotations
 

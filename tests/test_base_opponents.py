@@ -1,7 +1,8 @@
 """The two base opponents: ``smac`` (SMAC's one-player maps: the spawn order once, then SC2's automatic targeting)
 and ``base`` (SMAC-HARD's base_script.py: a per-map attack-move re-issued every step, none on three maps).
 
-Expected points are SMAC's map triggers (smac_interface §9) and SMAC-HARD's base_script.py (smac_hard_reference §3).
+Expected points are SMAC's map triggers (docs/smac_interface.md §9) and SMAC-HARD's base_script.py
+(docs/smac_hard_reference.md §3).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Combat mechanics against hand-computed fights from the unit facts of smac_interface §8.
+"""Combat mechanics against hand-computed fights from the unit facts of docs/smac_interface.md §8.
 
 Periods in game loops (Normal speed, 16 loops per second): marine 0.8608 s, stalker 1.87 s, zealot 1.2 s,
 marauder 1.5 s, colossus 1.5 s. A weapon that fires at loop 0 fires its n-th shot at loop ceil(n * period).

@@ -1,6 +1,6 @@
 """Movement, terrain and determinism of the engine.
 
-Speeds are Normal-speed distances per second (smac_interface §8); an env step is 8 loops = half a second, so a
+Speeds are Normal-speed distances per second (docs/smac_interface.md §8); an env step is 8 loops = half a second, so a
 unit travels speed / 2 per step in open ground.
 """
 

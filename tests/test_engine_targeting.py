@@ -1,4 +1,4 @@
-"""SC2's automatic targeting for units that acquire (smac_interface §9): idle and attack-moving units take the
+"""SC2's automatic targeting for units that acquire (docs/smac_interface.md §9): idle and attack-moving units take the
 closest enemy within scan range (max(5, range + 0.5), edge to edge), prefer an enemy that is attacking them, answer
 a hit from beyond that range, and holding units only shoot what is in weapon range. SMAC's *_RL units are passive.
 """

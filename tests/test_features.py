@@ -1,6 +1,6 @@
 """SMAC observation and state layouts: sizes on every map, and exact vectors for hand-built battles.
 
-Expected values come from SMAC's definitions (shared/reference/smac_interface.md §3-§4), worked out by hand here.
+Expected values come from SMAC's definitions (docs/smac_interface.md §3-§4), worked out by hand here.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from smac_hard_gym.smac.actions import available_actions
 from smac_hard_gym.smac.features import SideFeatures, SmacOptions
 from smac_hard_gym.units import UNITS
 
-# smac_interface §4: default-config sizes (n_actions, obs, state).
+# docs/smac_interface.md §4: default-config sizes (n_actions, obs, state).
 SMAC_SIZES = {
     "3m": (9, 30, 48), "8m": (14, 80, 168), "25m": (31, 250, 950), "5m_vs_6m": (12, 55, 98),
     "8m_vs_9m": (15, 85, 179), "10m_vs_11m": (17, 105, 243), "27m_vs_30m": (36, 285, 1170),
@@ -29,7 +29,7 @@ SMAC_SIZES = {
     "2c_vs_64zg": (70, 332, 342),
 }
 
-# smac_interface §7: agents, enemies, races and unit_type_bits, written out independently of the map files.
+# docs/smac_interface.md §7: agents, enemies, races and unit_type_bits, written out independently of the map files.
 SMAC_REGISTRY = {
     "3m": (3, 3, "T", "T", 0), "8m": (8, 8, "T", "T", 0), "25m": (25, 25, "T", "T", 0),
     "5m_vs_6m": (5, 6, "T", "T", 0), "8m_vs_9m": (8, 9, "T", "T", 0), "10m_vs_11m": (10, 11, "T", "T", 0),
@@ -46,7 +46,7 @@ OBS_FLAGS = ("obs_all_health", "obs_own_health", "obs_last_action", "obs_pathing
 
 
 def formula_sizes(n_agents, n_enemies, ally_race, enemy_race, bits, o):
-    """obs and state sizes from smac_interface §3/§4 (own block counting the timestep slot once)."""
+    """obs and state sizes from docs/smac_interface.md §3/§4 (own block counting the timestep slot once)."""
     n_actions = 6 + n_enemies
     sa, se = int(ally_race == "P"), int(enemy_race == "P")
     own_health = o["obs_all_health"] or o["obs_own_health"]
@@ -216,7 +216,7 @@ def test_pathing_and_height_features():
     # (1,20) (1,12) (5,16) (-3,16)->outside=1 (3,18) (-1,14)->1 (3,14) (-1,18)->1.
     np.testing.assert_array_equal(obs[1, 4:12], [1, 1, 1, 1, 1, 1, 1, 1])
     # Heights: SMAC reads the SC2 height byte / 255, and python-sc2 maps z = -16 + 32 * byte / 255, so a
-    # platform at z = 8 (cliff level 1, smac_interface §9) reads 0.75. Cell (10, 5) is the lower void (level 0).
+    # platform at z = 8 (cliff level 1, docs/smac_interface.md §9) reads 0.75. Cell (10, 5) is the lower void (level 0).
     cells = [(10, 13), (10, 5), (14, 9), (6, 9), (12, 11), (8, 7), (12, 7), (8, 11), (10, 9)]
     levels = [engine.spec.cliff[c] for c in cells]
     assert levels == [1, 0, 1, 1, 1, 1, 1, 1, 1]

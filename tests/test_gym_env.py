@@ -15,7 +15,7 @@ import smac_hard_gym
 from smac_hard_gym.envs.gym_env import SMACHardEnv
 from smac_hard_gym.smac.actions import InvalidActionError
 
-# SMAC's default sizes per map: (n_agents, n_actions, obs_size, state_size) (smac_interface.md §4 and §7).
+# SMAC's default sizes per map: (n_agents, n_actions, obs_size, state_size) (docs/smac_interface.md §4 and §7).
 SMAC_SIZES = {
     "3m": (3, 9, 30, 48), "8m": (8, 14, 80, 168), "25m": (25, 31, 250, 950), "5m_vs_6m": (5, 12, 55, 98),
     "8m_vs_9m": (8, 15, 85, 179), "10m_vs_11m": (10, 17, 105, 243), "27m_vs_30m": (27, 36, 285, 1170),

@@ -1,4 +1,5 @@
-"""The 23 SMAC maps as data, checked against SMAC's registry (smac_interface §7, §9), and the loader's errors."""
+"""The 23 SMAC maps as data, checked against SMAC's registry (docs/smac_interface.md §7, §9), and the loader's
+errors."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 
 from smac_hard_gym.maps import DATA_DIR, MapError, list_maps, load_map, load_map_file, parse_map, register_map
 
-# SMAC's map registry (smac_maps.py via smac_interface §7): agents, enemies, limit, races, type bits, map_type.
+# SMAC's map registry (smac_maps.py via docs/smac_interface.md §7): agents, enemies, limit, races, type bits, map_type.
 SMAC_REGISTRY = {
     "3m": (3, 3, 60, "T", "T", 0, "marines"),
     "8m": (8, 8, 120, "T", "T", 0, "marines"),
@@ -57,7 +58,7 @@ def test_map_matches_smac_registry(name):
 
 
 def test_spawns_and_orders_follow_the_map_scripts():
-    # smac_interface §9.
+    # docs/smac_interface.md §9.
     assert load_map("3m").red[0].spawn == (9.0, 16.0) and load_map("3m").blue[0].spawn == (23.0, 16.0)
     corridor = load_map("corridor")
     assert corridor.enemy_order.kind == "attack_move"
@@ -71,7 +72,7 @@ def test_spawns_and_orders_follow_the_map_scripts():
 
 
 @pytest.mark.parametrize("name, rows", [
-    # Pathable areas of smac_interface §9 (cells (x, y) covering [x, x+1) x [y, y+1)).
+    # Pathable areas of docs/smac_interface.md §9 (cells (x, y) covering [x, x+1) x [y, y+1)).
     ("3m", {8: (0, 31), 23: (0, 31)}),
     ("2m_vs_1z", {6: (10, 21), 9: (8, 23), 15: (6, 25), 23: (8, 23), 25: (10, 21)}),
     ("corridor", {5: (2, 11), 12: (12, 13), 15: (14, 25), 20: (12, 29), 29: (20, 29)}),

@@ -1,7 +1,7 @@
 """The script API, helpers, the registry, mixtures and make_opponent's validation.
 
 Expected values are computed by hand from the geometry or taken from SMAC-HARD's pool table
-(shared/reference/smac_hard_reference.md §3), never from the code under test.
+(docs/smac_hard_reference.md §3), never from the code under test.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ import pytest
 import smac_hard_gym
 from smac_hard_gym.maps import list_maps
 
-# Episode limits of SMAC's map registry (shared/reference/smac_interface.md §7).
+# Episode limits of SMAC's map registry (docs/smac_interface.md §7).
 SMAC_LIMITS = {
     "3m": 60, "8m": 120, "25m": 150, "5m_vs_6m": 70, "8m_vs_9m": 120, "10m_vs_11m": 150, "27m_vs_30m": 180,
     "MMM": 150, "MMM2": 180, "2s3z": 120, "3s5z": 150, "3s5z_vs_3s6z": 170, "3s_vs_3z": 150, "3s_vs_4z": 200,

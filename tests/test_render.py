@@ -3,7 +3,7 @@
 Pixel expectations use the world->pixel mapping written out here, independently of the renderer: x grows to the
 right at ``scale`` pixels per world unit, y grows upwards, and the map sits below a header band, so world (x, y) lies
 in pixel row ``header + (map_y - y) * scale``, column ``x * scale``. Unit radii and the baneling's splash radius are
-the public values collected in shared/reference/smac_interface.md §8 (marine 0.375, medivac 0.75, splash 2.2).
+the public values collected in docs/smac_interface.md §8 (marine 0.375, medivac 0.75, splash 2.2).
 """
 
 from __future__ import annotations

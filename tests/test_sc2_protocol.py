@@ -1,7 +1,7 @@
 """The protocol test server, driven the way a PySC2 client drives the game: pysc2_evolved's controllers over a real
 websocket, the stand-in SC2_x64 started through pysc2's run_configs from a temporary SC2PATH.
 
-Expected values come from the SMAC reference (smac_interface.md): 3m's pathable strip y 8-23 (512 cells), spawns
+Expected values come from the SMAC reference (docs/smac_interface.md): 3m's pathable strip y 8-23 (512 cells), spawns
 at (9, 16) and (23, 16), marines with 45 HP moving 2.25 per Normal second (8 loops = 0.5 s), SC2's standard id 48
 for Marine, custom types numbered after the built-in ids.
 """

@@ -40,7 +40,7 @@ def test_evaluation_counts_exactly_the_asked_episodes():
 
 
 def test_opponent_sets_for_evaluation():
-    # 3m's SMAC-HARD pool is its marine-line script plus base (smac_hard_reference.md §3); blackbox drops base.
+    # 3m's SMAC-HARD pool is its marine-line script plus base (docs/smac_hard_reference.md §3); blackbox drops base.
     assert resolve_opponents("3m", "default")[0] == ["line_front", "base"]
     names, weights = resolve_opponents("3m", "blackbox")
     assert names == ["line_front"] and weights.tolist() == [1.0]

@@ -1,4 +1,4 @@
-"""The unit table against the facts of smac_interface §8: Normal-speed units, SMAC's *_RL variants."""
+"""The unit table against the facts of docs/smac_interface.md §8: Normal-speed units, SMAC's *_RL variants."""
 
 from __future__ import annotations
 

@@ -37,7 +37,7 @@ DEFAULT_CUSTOM_ID_BASE = 1970  # the first custom (*_RL) unit type id on SC2 4.1
 REPLAY_MAGIC = b"SMAC-HARD-GYM test server replay\n"
 # State fields a raw Unit carries as protobuf floats (32-bit).
 REPORTED_FIELDS = ("x", "y", "health", "shield", "energy", "cooldown", "order_x", "order_y")
-_CLIFF_TO_Z = ((0.0, 1.0, 2.0), (0.0, 8.0, 10.0))  # cliff level -> terrain z (smac_interface section 9)
+_CLIFF_TO_Z = ((0.0, 1.0, 2.0), (0.0, 8.0, 10.0))  # cliff level -> terrain z (docs/smac_interface.md §9)
 
 
 def _height_bytes(z: np.ndarray) -> np.ndarray:
