@@ -273,7 +273,7 @@ def lowest(values: np.ndarray, mask: np.ndarray, tie: np.ndarray | None = None) 
     """
     if tie is None:
         return argmin_masked(values, mask)
-    vmin = np.where(mask, values, np.inf).min(axis=-1, keepdims=True)
+    vmin = np.minimum.reduce(np.where(mask, values, np.inf), axis=-1, keepdims=True)
     return argmin_masked(tie, mask & (values <= vmin + 1e-6))
 
 
@@ -301,7 +301,7 @@ def weakest_of_nearest(dist: np.ndarray, values: np.ndarray, mask: np.ndarray, k
     values = np.broadcast_to(values if values.ndim == 3 else values[:, None, :], dist.shape)
     d = np.where(mask, dist, np.inf)
     by_distance = np.argsort(np.argsort(d, axis=-1, kind="stable"), axis=-1, kind="stable")  # rank, (R, n, m)
-    few = (mask.sum(axis=-1) <= k)[..., None]
+    few = (_sum(mask, axis=-1) <= k)[..., None]
     order = np.where(few, np.arange(dist.shape[-1]), by_distance)
     return lowest(values, mask & (few | (by_distance < k)), tie=order)
 

@@ -68,7 +68,9 @@ class _MMMScript(BatchScript):
         (R, n); the others move onto the line."""
         alive = frame.own_alive
         mx, _ = centroid(frame.own_hx, frame.own_hy, marine)
-        ax, _ = centroid(frame.own_hx, frame.own_hy, alive)
+        # The army's centre: for blue (hx = x) that is the frame's cached own_centroid, except in rows without a
+        # unit alive, whose orders below are all masked out anyway.
+        ax = frame.own_centroid[0] if frame.reflection is None else centroid(frame.own_hx, frame.own_hy, alive)[0]
         front = np.where(_any(marine, axis=1), mx, ax) - 2.0
         ahead = frame.own_hx < front[:, None]
         orders.attack(marauder & fight[:, None] & ahead, target)
@@ -85,10 +87,13 @@ class _MMMScript(BatchScript):
             return
         listed = np.where(of_kind(frame.own_type, "marine"), 0, frame.n_own) + np.arange(frame.n_own)
         patient = lowest(frame.own_health_frac, patients, tie=listed)  # (n,) broadcasts over the rows
-        hurt = np.take_along_axis(frame.own_health_frac, np.maximum(patient, 0)[:, None], axis=1)[:, 0] < 1.0
+        hurt = frame.own_health_frac[np.arange(patient.shape[0]), np.maximum(patient, 0)] < 1.0
         hurt &= patient >= 0
         orders.heal(units & hurt[:, None], patient[:, None])
-        cx, cy = centroid(frame.own_hx, frame.own_hy, frame.own_alive)
+        if frame.reflection is None:  # blue: own_centroid (every row here has its medivac alive: no fallback)
+            cx, cy = frame.own_centroid
+        else:
+            cx, cy = centroid(frame.own_hx, frame.own_hy, frame.own_alive)
         orders.move(units & ~hurt[:, None], *from_blue_frame(frame, cx[:, None] + 1.0, cy[:, None]))
 
 
