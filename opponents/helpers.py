@@ -80,6 +80,22 @@ def _expand(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     return full
 
 
+_CAN_HIT_BLOCKS: dict[tuple, np.ndarray] = {}
+
+
+def _can_hit(shooters: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """``CAN_HIT[shooters[:, :, None], targets[:, None, :]]`` for (1, n) and (1, m) type rows, cached per pair of
+    rows (a map fixes them) and read-only."""
+    key = (shooters.tobytes(), shooters.shape, shooters.dtype.str, targets.tobytes(), targets.shape, targets.dtype.str)
+    block = _CAN_HIT_BLOCKS.get(key)
+    if block is None:
+        if len(_CAN_HIT_BLOCKS) >= 256:
+            _CAN_HIT_BLOCKS.clear()
+        block = _CAN_HIT_BLOCKS[key] = CAN_HIT[shooters[:, :, None], targets[:, None, :]]
+        block.flags.writeable = False
+    return block
+
+
 def _has_healer(types: np.ndarray) -> bool:
     """Whether any unit type of the (1, n) row ``types`` is a healer (cached per row: a map fixes it)."""
     key = types.tobytes()
@@ -206,7 +222,7 @@ class Frame:
     @lazy_property
     def hittable(self) -> np.ndarray:
         """Own unit i (alive, armed) can damage enemy k (alive, right plane), (R, n, m)."""
-        can = CAN_HIT[self.own_type[:, :, None], self.enemy_type[:, None, :]]
+        can = _can_hit(self.own_type, self.enemy_type)
         return can & self.own_alive[:, :, None] & self.enemy_alive[:, None, :]
 
     @lazy_property
@@ -298,7 +314,7 @@ def weakest_of_nearest(dist: np.ndarray, values: np.ndarray, mask: np.ndarray, k
     (a stable sort: equal distances keep index order) and a tie goes to the nearer. ``values`` (R, m) or (R, n, m);
     returns (R, n) indices, -1 without candidates.
     """
-    values = np.broadcast_to(values if values.ndim == 3 else values[:, None, :], dist.shape)
+    values = values if values.ndim == 3 else values[:, None, :]  # (R, 1, m) broadcasts in lowest's comparisons
     d = np.where(mask, dist, np.inf)
     by_distance = np.argsort(np.argsort(d, axis=-1, kind="stable"), axis=-1, kind="stable")  # rank, (R, n, m)
     few = (_sum(mask, axis=-1) <= k)[..., None]

@@ -226,7 +226,9 @@ class ColumnAdvance(BatchScript):
                         *from_blue_frame(frame, LINE_X, LINE_Y + (k - n / 2.0) * self.spacing))
 
         far = _centre_distance(frame, *frame.own_centroid) > self.contact_distance
-        orders.move(alive & (~forming & far)[:, None], *from_blue_frame(frame, hx - self.advance_step, hy))
+        advance = alive & (~forming & far)[:, None]
+        if _any(advance, axis=None):
+            orders.move(advance, *from_blue_frame(frame, hx - self.advance_step, hy))
 
         fight = alive & (~forming & ~far)[:, None]
         if not _any(fight, axis=None):
@@ -240,5 +242,5 @@ class ColumnAdvance(BatchScript):
             orders.attack(fight, target)
         else:
             safe = np.maximum(target, 0)
-            orders.attack_move(fight & (target >= 0), np.take_along_axis(frame.enemy_x, safe, axis=1),
-                               np.take_along_axis(frame.enemy_y, safe, axis=1))
+            row = np.arange(safe.shape[0])[:, None]  # take_along_axis by plain indexing (same values)
+            orders.attack_move(fight & (target >= 0), frame.enemy_x[row, safe], frame.enemy_y[row, safe])
