@@ -17,6 +17,7 @@ from smac_hard_gym.opponents.helpers import (
     Memory,
     Orders,
     _any,
+    _sum,
     argmin_masked,
     centroid,
     from_blue_frame,
@@ -38,14 +39,15 @@ def _retreat_home(frame: Frame, orders: Orders, units: np.ndarray) -> None:
 def _nearest(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
     """(R, n) each unit's nearest enemy (first in index order on a tie, -1 if none) and its centre distance."""
     near = nearest(frame.dist, frame.targetable)
-    d = np.take_along_axis(frame.dist, np.maximum(near, 0)[:, :, None], axis=2)[:, :, 0]
+    r, n = near.shape  # take_along_axis by plain indexing (same values, less Python overhead)
+    d = frame.dist[np.arange(r)[:, None], np.arange(n), np.maximum(near, 0)]
     return near, np.where(near >= 0, d, np.inf)
 
 
 def _enemy_weak(frame: Frame) -> np.ndarray:
     """(R,) SMAC-HARD's "the enemy is weak": fewer than 4 alive, or more than 2 below 20% hull health."""
-    n_enemy = frame.enemy_alive.sum(axis=1)
-    n_weak = (frame.enemy_alive & (frame.enemy_health_frac < 0.2)).sum(axis=1)
+    n_enemy = _sum(frame.enemy_alive, axis=1)
+    n_weak = _sum(frame.enemy_alive & (frame.enemy_health_frac < 0.2), axis=1)
     return (n_enemy < 4) | (n_weak > 2)
 
 
