@@ -25,6 +25,6 @@ def kernels_cached() -> bool | None:
             return bool(dispatcher._cache._cache_file._load_index())
 
         engine = cached(kernels.step_batch) or cached(kernels.step_batch_serial)
-        return engine and cached(feature_kernels.available_actions_batch) and cached(feature_kernels.finish_step)
+        return engine and cached(feature_kernels.available_actions_batch) and cached(feature_kernels.finish_encode)
     except Exception:  # an internal numba API: never let it break a command
         return None

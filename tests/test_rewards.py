@@ -5,45 +5,65 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from smac_hard_gym.engine.state import BLUE, RED, allocate_state
+from smac_hard_gym.engine.state import BLUE, RED
 from smac_hard_gym.envs.core import TwoPlayerCore
-from smac_hard_gym.maps import load_map
 from smac_hard_gym.opponents import Script
-from smac_hard_gym.smac.features import BLUE_WON, DRAW, RED_WON, RUNNING, RewardFunction, SideFeatures, SmacOptions
-from smac_hard_gym.units import STATS, S
+from smac_hard_gym.smac.features import BLUE_WON, DRAW, RED_WON, RUNNING, SmacOptions
 
 MAX_REWARD_3M = 3 * 10 + 200 + 3 * 45  # kills + win + enemy health: 365
 DIVISOR_3M = MAX_REWARD_3M / 20  # 18.25
 
 
+class HandBackend:
+    """The native backend with its simulation replaced by hand: ``step`` applies ``pending`` and nothing else, so a
+    core step's outcome and rewards follow from hand-set health, shields and deaths."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.spec, self.batch_size, self.step_mul = inner.spec, inner.batch_size, inner.step_mul
+        self.n_red, self.n_blue = inner.n_red, inner.n_blue
+        self.pending = {}
+
+    @property
+    def state(self):
+        return self.inner.state
+
+    def reset(self, battles=None, seeds=None):
+        self.inner.reset(battles, seeds)
+
+    def step(self, commands, active):
+        """Apply {"u<slot>": health} (0 = dies) or {"u<slot>": (health, shield)} to battle 0."""
+        state = self.state
+        for key, value in self.pending.items():
+            slot = int(key[1:])
+            health, shield = value if isinstance(value, tuple) else (value, state.shield[0, slot])
+            state.health[0, slot] = health
+            state.shield[0, slot] = shield
+            if health <= 0:
+                state.alive[0, slot] = False
+                state.health[0, slot] = state.shield[0, slot] = 0.0
+        self.pending = {}
+
+    def close(self):
+        self.inner.close()
+
+
 class Snapshots:
-    """A battle as bare health/shield/alive arrays, for stepping the reward by hand."""
+    """One battle of a self-play core whose steps change health by hand: the rewards come from the core's own step
+    (the production path: outcome, rewards and counters in one kernel), for hand-computed kill sequences."""
 
     def __init__(self, name="3m", **options):
-        spec = load_map(name)
-        self.options = SmacOptions(**options)
-        self.reward = RewardFunction(SideFeatures(spec, RED, self.options), SideFeatures(spec, BLUE, self.options),
-                                     self.options)
-        utype = self.reward.sides[RED].utype
-        self.state = allocate_state(1, len(utype))
-        self.state.alive[:] = True
-        self.state.health[0] = STATS[utype, S["health"]]
-        self.state.shield[0] = STATS[utype, S["shield"]]
+        self.core = TwoPlayerCore(name, 1, mode="self-play", options=SmacOptions(**options), seed=0)
+        self.core.backend = HandBackend(self.core.backend)
+        self.reward = self.core.rewards
 
-    def step(self, outcome=RUNNING, **changes):
-        """Apply {slot: health} (0 = dies) or {slot: (health, shield)}, return the (red, blue) rewards."""
-        prev_hs = self.state.health + self.state.shield
-        prev_alive = self.state.alive.copy()
-        for key, value in changes.items():
-            slot = int(key[1:])
-            health, shield = value if isinstance(value, tuple) else (value, self.state.shield[0, slot])
-            self.state.health[0, slot] = health
-            self.state.shield[0, slot] = shield
-            if health <= 0:
-                self.state.alive[0, slot] = False
-                self.state.health[0, slot] = self.state.shield[0, slot] = 0.0
-        out = self.reward(prev_hs, prev_alive, self.state, np.array([outcome], dtype=np.int8))
-        return tuple(float(v) for v in out[0])
+    def step(self, **changes):
+        """Apply the changes during one core step (both sides stop, or no-op when dead); the (red, blue) rewards."""
+        self.core.backend.pending = changes
+        red, blue = (self.core.avail_actions(side).argmax(axis=2) for side in (RED, BLUE))
+        result = self.core.step(red, blue)
+        self.outcome = int(result.outcome[0])
+        return tuple(float(v) for v in result.reward[0])
 
 
 def test_max_reward_per_side():
@@ -57,7 +77,8 @@ def test_perfect_3m_win_by_hand_sums_to_reward_scale_rate():
     snap = Snapshots()
     r1 = snap.step(u3=39.0)  # enemy 0 loses 6
     r2 = snap.step(u3=0.0)  # enemy 0 dies from 39: 39 + 10
-    r3 = snap.step(u4=0.0, u5=0.0, outcome=RED_WON)  # two kills from full (2 x 55) and the win (200)
+    r3 = snap.step(u4=0.0, u5=0.0)  # two kills from full (2 x 55) and the win (200)
+    assert snap.outcome == RED_WON
     assert r1 == pytest.approx((6 / DIVISOR_3M, 0.0))
     assert r2 == pytest.approx((49 / DIVISOR_3M, 0.0))
     assert r3 == pytest.approx((310 / DIVISOR_3M, 0.0))
@@ -95,15 +116,22 @@ def test_regeneration_pays_nothing_with_only_positive():
 
 
 def test_terminal_bonuses_draws_and_sparse_rewards():
+    every_red = {"u0": 0.0, "u1": 0.0, "u2": 0.0}
+    every_blue = {"u3": 0.0, "u4": 0.0, "u5": 0.0}
     snap = Snapshots(reward_scale=False, reward_defeat=-7)
-    assert snap.step(outcome=BLUE_WON) == pytest.approx((-7.0, 200.0))
-    assert snap.step(outcome=DRAW) == (0.0, 0.0)
+    # Blue wins: red earns the defeat term; blue its three kills from full (3 x (45 + 10)) and the win.
+    assert snap.step(**every_red) == pytest.approx((-7.0, 365.0))
+    assert snap.outcome == BLUE_WON
+    draw = Snapshots(reward_scale=False, reward_defeat=-7)
+    assert draw.step(**every_red, **every_blue) == pytest.approx((165.0, 165.0))  # kills only: no bonus either way
+    assert draw.outcome == DRAW
     sparse = Snapshots(reward_sparse=True, reward_scale=False)
     assert sparse.step(u3=10.0) == (0.0, 0.0)
-    assert sparse.step(outcome=RED_WON) == (1.0, -1.0)
+    assert sparse.outcome == RUNNING
+    assert sparse.step(**every_blue) == (1.0, -1.0)
     # SMAC scales sparse rewards too (by max_reward / reward_scale_rate).
     scaled = Snapshots(reward_sparse=True)
-    assert scaled.step(outcome=RED_WON)[0] == pytest.approx(1 / DIVISOR_3M)
+    assert scaled.step(**every_blue)[0] == pytest.approx(1 / DIVISOR_3M)
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Where a step's wall time goes: the core's collaborators are wrapped with timers while random play runs."""
+"""Where a step's wall time goes: the core reports each phase of its step to a hook while random play runs."""
 
 from __future__ import annotations
 
@@ -11,55 +11,21 @@ from smac_hard_gym.bench.policy import RandomLegalPolicy, VectorLoop, warm_up
 
 
 class _Splits:
-    """Wall time accumulated per component by wrapping callables in place (restored by ``restore``)."""
+    """Wall time accumulated per phase of the core's step, through its ``profile_hook``."""
+
+    LABELS = {"actions": "action checks + decoding", "opponent": "opponent script", "engine": "engine step",
+              "outcome and features": "outcome, rewards, masks, observations, state (one pass)"}
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
-        self._undo: list[tuple[Any, str, Any]] = []
 
-    def wrap(self, owner: Any, attr: str, label: str) -> None:
-        original = getattr(owner, attr)
-        seconds = self.seconds
-        seconds.setdefault(label, 0.0)
-
-        def timed(*args: Any, **kwargs: Any) -> Any:
-            t = time.perf_counter()
-            try:
-                return original(*args, **kwargs)
-            finally:
-                seconds[label] += time.perf_counter() - t
-
-        self._undo.append((owner, attr, original))
-        setattr(owner, attr, timed)
-
-    def restore(self) -> None:
-        for owner, attr, original in reversed(self._undo):
-            setattr(owner, attr, original)
-        self._undo.clear()
+    def __call__(self, phase: str, seconds: float) -> None:
+        label = self.LABELS.get(phase, phase)
+        self.seconds[label] = self.seconds.get(label, 0.0) + seconds
 
 
-# (owner path, attribute, label): the core's collaborators, wrapped where the core looks them up.
-_CORE_PARTS = (
-    ("backend", "step", "engine step"),
-    ("opponent", "act", "opponent script"),
-    ("features.0", "observations", "observations"),
-    ("features.0", "global_state", "global state"),
-    ("features.0", "encode", "masks, observations and state in one pass (StarCraft2Env)"),
-    ("core_module", "available_actions", "action masks"),
-    ("core_module", "check_actions", "action checks + decoding"),
-    ("core_module", "decode_actions", "action checks + decoding"),
-    ("core_module", "finish_step", "outcome, rewards, counters"),
-)
-
-
-def _wrap_core(splits: _Splits, core: Any) -> None:
-    import smac_hard_gym.envs.core as core_module
-
-    owners = {"backend": core.backend, "opponent": core.opponent, "features.0": core.features[0],
-              "core_module": core_module, "core": core}
-    for owner, attr, label in _CORE_PARTS:
-        if owners[owner] is not None:
-            splits.wrap(owners[owner], attr, label)
+def _attach(splits: _Splits, core: Any) -> None:
+    core.profile_hook = splits
 
 
 def _split_table(splits: _Splits, total: float, steps: int, policy_seconds: float) -> dict[str, Any]:
@@ -82,7 +48,7 @@ def profile_native(map_name: str, num_envs: int, *, opponent: str = "base", seco
     loop = VectorLoop(env, env.view.n_agents, env.view.n_actions, seed)
     warm_up(loop)
     splits = _Splits()
-    _wrap_core(splits, env.core)
+    _attach(splits, env.core)
     policy, policy_time = loop.policy, [0.0]
 
     def timed_policy(masks: np.ndarray) -> np.ndarray:
@@ -99,7 +65,7 @@ def profile_native(map_name: str, num_envs: int, *, opponent: str = "base", seco
             steps += 1
     finally:
         total = time.perf_counter() - t0
-        splits.restore()
+        env.core.profile_hook = None
         env.close()
     table = _split_table(splits, total, steps, policy_time[0])
     table.update(what="native", map=map_name, num_envs=num_envs, opponent=opponent,
@@ -117,7 +83,7 @@ def profile_starcraft2(map_name: str = "3m", *, opponent: str = "base", seconds:
     policy = RandomLegalPolicy(1, info["n_agents"], info["n_actions"], seed)
     env.reset()
     splits = _Splits()
-    _wrap_core(splits, env._core)
+    _attach(splits, env._core)
     policy_time, steps, t0 = 0.0, 0, time.perf_counter()
     try:
         while time.perf_counter() - t0 < seconds or steps < 2:
@@ -133,7 +99,7 @@ def profile_starcraft2(map_name: str = "3m", *, opponent: str = "base", seconds:
             steps += 1
     finally:
         total = time.perf_counter() - t0
-        splits.restore()
+        env._core.profile_hook = None
         env.close()
     table = _split_table(splits, total, steps, policy_time)
     table.update(what="starcraft2", map=map_name, num_envs=1, opponent=opponent, steps_per_second=steps / total)

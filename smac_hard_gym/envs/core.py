@@ -8,11 +8,11 @@ Public surface::
                          backend="native", step_mul=8, options=SmacOptions(), seed=None, backend_options=None)
 
     core.reset(battles=None, seed=None)          # start new episodes (all battles, or the indices given)
-    result = core.step(red_actions, blue_actions=None)   # actions: int (B, n_red) / (B, n_blue)
+    result = core.step(red_actions, blue_actions=None, replace_invalid=False)   # int (B, n_red) / (B, n_blue)
     core.avail_actions(side=RED)                 # bool (B, n, n_actions)   side: RED=0 / BLUE=1
     core.observations(side=RED, out=None)        # float32 (B, n, obs_size)
     core.global_state(side=RED, out=None)        # float32 (B, state_size)
-    core.encode(side=RED)                        # (masks, observations, state) in one pass
+    core.encode(side=RED)                        # (masks, observations, state) of the current state
     core.visibility(side=RED)                    # bool (B, n, n + m)
     core.side_view(side)                         # opponents.api.SideView over the live state
     core.opponent_names()                        # list[str], the opponent playing each battle's episode
@@ -27,15 +27,26 @@ Attributes: ``spec`` (MapSpec), ``batch_size``, ``mode``, ``options``, ``backend
 (B,): battles that finished and wait for a reset), ``last_action`` (per side, int64 (B, n), -1 = none), ``rngs``
 (one seeded ``np.random.Generator`` per battle), ``opponent`` (the script, None in self-play).
 
-``step`` advances the battles that are not ``done`` and returns a :class:`StepResult` of per-battle arrays:
-``reward`` float32 (B, 2) [red, blue], ``terminated`` (win, loss or draw), ``truncated`` (episode limit reached
-first), ``outcome`` (RUNNING / RED_WON / BLUE_WON / DRAW), ``dead_red`` / ``dead_blue`` counts, ``stepped`` (the
-battles advanced) and ``opponent`` names. Finished battles stay frozen until ``reset(battles)``; the core never
-resets on its own (the env layers choose their autoreset policy).
+``step`` goes down once and up once. Down: red's actions are checked and decoded into engine commands in one kernel
+call (blue's too in self-play), the opponent script writes blue's, the backend steps. Up: one kernel call writes the
+outcome, both sides' rewards, the counters and red's encoding of the new state (masks, observations, and the global
+state when ``encode_state``). It returns a :class:`StepResult` holding all of it per battle: ``reward`` float32
+(B, 2) [red, blue], ``terminated`` (win, loss or draw), ``truncated`` (episode limit reached first), ``outcome``
+(RUNNING / RED_WON / BLUE_WON / DRAW), ``dead_red`` / ``dead_blue`` counts, ``stepped`` (the battles advanced),
+``opponent`` names, ``replaced`` (red's unavailable actions replaced under ``replace_invalid``), ``episode_step``,
+and red's ``avail``, ``obs`` and ``state``. Finished battles stay frozen until ``reset(battles)``; the core never
+resets on its own (the env layers choose their autoreset policy). ``episode_limit`` (default: the map's) is the
+step count at which an episode is truncated.
+
+``profile_hook``: None, or a callable ``hook(phase, seconds)`` that ``step`` calls after each phase ("actions",
+"opponent", "engine", "outcome and features") with its wall time: how the benchmarks split a step.
 
 Modes: ``"script"``: the opponent (a :class:`~smac_hard_gym.opponents.api.Script`, a built-in name or what
 ``make_opponent`` accepts) gets ``reset(view, battles, rngs)`` at each episode start and ``act(view, commands,
 active)`` every step; ``"self-play"``: ``step`` takes blue's SMAC actions, validated and decoded like red's.
+``red_script`` (script mode): a script plays red as well, with a generator of its own per battle (seeded from
+``[s, 2]``); ``step(None)`` then takes no actions (duels and recordings run this way). ``backend``: a name
+(``"native"``, ``"sc2"``) or a :class:`~smac_hard_gym.backend.Backend` the caller built.
 
 Seeding: ``reset(seed=s)`` gives battle b the generator ``np.random.default_rng(s + b)`` (so battle b of a batch
 draws like a single env seeded ``s + b``); a sequence seeds the listed battles one by one; ``None`` keeps each
@@ -45,25 +56,27 @@ separate stream per battle, restarted from the same seed and otherwise left runn
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from smac_hard_gym.backend import Backend, make_backend
+from smac_hard_gym.backend import BACKENDS, Backend, make_backend
 from smac_hard_gym.engine.state import BLUE, RED, Commands
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents import Script, SideView, make_opponent
-from smac_hard_gym.smac.actions import available_actions, check_actions, decode_actions
+from smac_hard_gym.smac.actions import available_actions, raise_unavailable, validate_actions
 from smac_hard_gym.smac.features import (
     BLUE_WON,
     DRAW,
     RED_WON,
+    SIDE_NAMES,
     RewardFunction,
     SideFeatures,
     SmacOptions,
 )
-from smac_hard_gym.smac.kernels import finish_step
+from smac_hard_gym.smac.kernels import bind, check_decode_batch, finish_encode
 from smac_hard_gym.units import STATS, WEAPON_HEAL, S
 
 __all__ = ["TwoPlayerCore", "StepResult", "MODES", "SELF_PLAY_NAME", "RED", "BLUE"]
@@ -84,6 +97,11 @@ class StepResult(NamedTuple):
     stepped: np.ndarray  # bool (B,): battles advanced by this step
     opponent: list[str]  # opponent playing each battle
     restarted: np.ndarray  # bool (B,): the backend restarted a lost game; the episode ended without a result
+    replaced: np.ndarray  # int64 (B,): red's unavailable actions replaced by the first available (replace_invalid)
+    episode_step: np.ndarray  # int64 (B,): env steps of each battle's episode so far (a copy)
+    avail: np.ndarray  # bool (B, n_red, n_actions): red's available actions in the new state
+    obs: np.ndarray  # float32 (B, n_red, obs_size): red's observations of the new state
+    state: np.ndarray | None  # float32 (B, state_size): red's global state (None unless the core encodes it)
 
     @property
     def battle_won(self) -> np.ndarray:
@@ -132,13 +150,21 @@ class TwoPlayerCore:
     def __init__(self, map_name: str | MapSpec, batch_size: int = 1, *, mode: str = "script",
                  opponent: Any = "smac", opponent_probs: Sequence[float] | None = None, backend: str = "native",
                  step_mul: int = 8, options: SmacOptions | None = None, seed: int | None = None,
-                 backend_options: dict | None = None, opponent_isolation: str = "guard") -> None:
+                 backend_options: dict | None = None, opponent_isolation: str = "guard", encode_state: bool = True,
+                 episode_limit: int | None = None, red_script: Any = None) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if not isinstance(batch_size, (int, np.integer)) or isinstance(batch_size, bool) or batch_size < 1:
             raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
         self.spec: MapSpec = load_map(map_name)
         self.batch_size = int(batch_size)
+        self.episode_limit = self.spec.episode_limit
+        if episode_limit is not None:
+            if isinstance(episode_limit, bool) or not isinstance(episode_limit, (int, np.integer)) or episode_limit < 1:
+                raise ValueError(f"episode_limit must be a positive int or None, got {episode_limit!r}")
+            self.episode_limit = min(self.episode_limit, int(episode_limit))
+        self.encode_state = bool(encode_state)
+        self.profile_hook: Any = None
         self.mode = mode
         self.options = options or SmacOptions()
         self.features: tuple[SideFeatures, SideFeatures] = (
@@ -146,7 +172,11 @@ class TwoPlayerCore:
         self.rewards = RewardFunction(*self.features, self.options)
         self.n_red, self.n_blue = self.features[RED].n_agents, self.features[BLUE].n_agents
         utype = self.features[RED].utype
-        self._fighter = STATS[utype, S["weapon"]] != WEAPON_HEAL
+        # The way up's constants: red's features, the reward options, the outcome rule and the limit, by name.
+        self._up_args = bind(finish_encode, {
+            **self.features[RED].constants, **self.rewards.constants,
+            "fighter": STATS[utype, S["weapon"]] != WEAPON_HEAL, "n_red": self.n_red,
+            "step_limit": self.episode_limit})
 
         self.opponent: Script | None = None
         if mode == "script":
@@ -154,9 +184,21 @@ class TwoPlayerCore:
         elif opponent not in (None, "smac") or opponent_probs is not None:
             raise ValueError(f"mode 'self-play' takes blue's actions from step(); opponent={opponent!r} and "
                              f"opponent_probs={opponent_probs!r} apply to mode 'script' only")
+        # A script can drive red too (duels, recordings): step() then takes no red actions.
+        self.red_script: Script | None = None
+        if red_script is not None:
+            if mode != "script":
+                raise ValueError(f"red_script={red_script!r} needs mode 'script' (a script on each side)")
+            self.red_script = make_opponent(self.spec, red_script, isolation=opponent_isolation)
 
-        self.backend: Backend = make_backend(backend, self.spec, batch_size=self.batch_size, step_mul=step_mul,
-                                             **(backend_options or {}))
+        if isinstance(backend, str):
+            self.backend: Backend = make_backend(backend, self.spec, batch_size=self.batch_size, step_mul=step_mul,
+                                                 **(backend_options or {}))
+        elif isinstance(backend, Backend) and backend.batch_size == self.batch_size and backend_options is None:
+            self.backend = backend  # a backend built by the caller (its map must be this one: checked below)
+        else:
+            raise ValueError(f"backend must be one of {BACKENDS} or a Backend of {self.batch_size} battles built "
+                             f"without backend_options here, got {backend!r}")
         shape = self.backend.state.alive.shape
         if shape != (self.batch_size, self.n_red + self.n_blue):
             raise RuntimeError(f"backend {backend!r} state has shape {shape}, expected "
@@ -168,14 +210,19 @@ class TwoPlayerCore:
         self.last_action = (np.full((b, self.n_red), -1, dtype=np.int64),
                             np.full((b, self.n_blue), -1, dtype=np.int64))
         self.rngs: list[np.random.Generator | None] = [None] * b
+        self.red_rngs: list[np.random.Generator | None] = [None] * b  # the red script's, a stream of its own
         self._has_rng = np.zeros(b, dtype=bool)
         self.seeds: list[int | None] = [None] * b
         self._stats = _OpponentStats()
         self._names = np.full(b, SELF_PLAY_NAME, dtype=object)  # opponent per battle, fixed for an episode
         self._name_ids = np.full(b, self._stats.name_id(SELF_PLAY_NAME), dtype=np.int64)  # its row in the stats
-        self._avail_cache: list[np.ndarray | None] = [None, None]
+        self._avail_cache: list[np.ndarray | None] = [None, None]  # each side's masks of the current state
+        self._encoded: list[tuple | None] = [None, None]  # each side's (masks, obs, state or None) of it
+        self._views: list[SideView | None] = [None, None]
+        self._no_replaced = np.zeros(b, dtype=np.int64)
         self._no_restarts = np.zeros(b, dtype=bool)
         self._no_actions = np.zeros((0, self.n_blue), dtype=np.int64)  # blue's actions when a script plays it
+        self._no_red_actions = np.zeros((0, self.n_red), dtype=np.int64)  # red's, when red_script plays it
         self._error: BaseException | None = None
         self._closed = False
         self.reset(seed=seed)
@@ -216,7 +263,7 @@ class TwoPlayerCore:
         self.done[rows] = False
         self.last_action[RED][rows] = -1
         self.last_action[BLUE][rows] = -1
-        self._invalidate()
+        self._refresh(rows)
         if self.opponent is not None:
             try:
                 self.opponent.reset(self.side_view(BLUE), rows, self.rngs)
@@ -227,60 +274,111 @@ class TwoPlayerCore:
             ids = {name: self._stats.name_id(name) for name in set(names)}
             self._names[rows] = names
             self._name_ids[rows] = [ids[name] for name in names]
-        self._error = None
-
-    def step(self, red_actions: Any, blue_actions: Any = None) -> StepResult:
-        """Advance every battle that is not done by one env step (``step_mul`` game loops)."""
-        self._check_open()
-        if self._error is not None:
-            raise RuntimeError(f"the opponent failed ({self._error!r}); call reset() before stepping again")
-        active = ~self.done
-        red = check_actions(self.features[RED], red_actions, self.avail_actions(RED), active)
-        blue = None
-        if self.mode == "self-play":
-            if blue_actions is None:
-                raise ValueError("mode 'self-play' needs blue's actions: step(red_actions, blue_actions)")
-            blue = check_actions(self.features[BLUE], blue_actions, self.avail_actions(BLUE), active)
-        elif blue_actions is not None:
-            raise ValueError("mode 'script' plays blue with the opponent script; pass red's actions only")
-
-        state = self.backend.state
-        self.commands.clear()
-        if self.opponent is not None:
+        if self.red_script is not None:
             try:
-                self.opponent.act(self.side_view(BLUE), self.commands, active)
+                self.red_script.reset(self.side_view(RED), rows, self.red_rngs)
             except Exception as err:
                 self._error = err
                 raise
+        self._error = None
+
+    def step(self, red_actions: Any, blue_actions: Any = None, *, replace_invalid: bool = False,
+             hint: str = "") -> StepResult:
+        """Advance every battle that is not done by one env step (``step_mul`` game loops).
+
+        Actions are checked (:func:`~smac_hard_gym.smac.actions.validate_actions`, then availability in the battles
+        that step). An unavailable red action raises :class:`~smac_hard_gym.smac.actions.InvalidActionError`
+        (message ending with ``hint``), or with ``replace_invalid`` is replaced by the agent's first available one
+        and counted in ``result.replaced``. A rejected step changes nothing.
+        """
+        self._check_open()
+        if self._error is not None:
+            raise RuntimeError(f"the opponent failed ({self._error!r}); call reset() before stepping again")
+        if self.mode == "self-play" and blue_actions is None:
+            raise ValueError("mode 'self-play' needs blue's actions: step(red_actions, blue_actions)")
+        if self.mode == "script" and blue_actions is not None:
+            raise ValueError("mode 'script' plays blue with the opponent script; pass red's actions only")
+        hook = self.profile_hook
+        clock = time.perf_counter() if hook is not None else 0.0
+        size, active, state, commands = self.batch_size, ~self.done, self.backend.state, self.commands
+
+        # Down: actions to commands (red's in one call, blue's too in self-play), then the opponent.
+        commands.clear()
+        replaced = np.zeros(size, dtype=np.int64) if replace_invalid else self._no_replaced
+        if self.red_script is None:
+            red = self._decode(RED, red_actions, active, replace_invalid, replaced, hint)
+        elif red_actions is not None:
+            raise ValueError("red is played by red_script: step() takes no red actions (pass None)")
         else:
-            decode_actions(self.features[BLUE], state, blue, self.commands, active)
-        # Red's commands are written last, so a script cannot order red's units.
-        decode_actions(self.features[RED], state, red, self.commands, active)
+            red = self._no_red_actions
+            self._act(self.red_script, RED, commands, active)
+        blue = self._no_actions
+        if self.mode == "self-play":
+            blue = self._decode(BLUE, blue_actions, active, False, np.zeros(size, dtype=np.int64), "")
+        if hook is not None:
+            clock = self._lap(hook, "actions", clock)
+        if self.opponent is not None:
+            self._act(self.opponent, BLUE, commands, active)
+            if hook is not None:
+                clock = self._lap(hook, "opponent", clock)
 
         prev_hs = state.health + state.shield
         prev_alive = state.alive.copy()
-        self.backend.step(self.commands, active)
+        self.backend.step(commands, active)
         state = self.backend.state
         self._invalidate()
-        # A backend that lost its game (sc2: protocol or connection error) restarted it: that episode ended
-        # without a result and earns nothing.
+        if hook is not None:
+            clock = self._lap(hook, "engine", clock)
+
+        # Up: outcome, rewards, counters and red's encoding of the new state, in one call. A backend that lost its
+        # game (sc2: protocol or connection error) restarted it: that episode ended without a result, earns nothing.
         restarted = getattr(self.backend, "restarted", None)
         restarted = self._no_restarts if restarted is None else np.ascontiguousarray(restarted, dtype=bool)
-        size = self.batch_size
         outcome, reward = np.empty(size, np.int8), np.empty((size, 2), np.float32)
         terminated, truncated = np.empty(size, bool), np.empty(size, bool)
         dead_red, dead_blue = np.empty(size, np.int64), np.empty(size, np.int64)
-        rewards = self.rewards
-        n_ended = finish_step(prev_hs, prev_alive, state.alive, state.health, state.shield, self._fighter, self.n_red,
-                              active, restarted, red, self._no_actions if blue is None else blue,
-                              self.last_action[RED], self.last_action[BLUE], self.episode_step,
-                              self.spec.episode_limit, rewards.kernel_values, rewards.kernel_flags, rewards.divisor,
-                              self.done, outcome, reward, terminated, truncated, dead_red, dead_blue)
+        feats = self.features[RED]
+        avail, obs, global_state = feats.outputs(size, self.encode_state)
+        n_ended = finish_encode(prev_hs, prev_alive, state.x, state.y, state.alive, state.health, state.shield,
+                                state.energy, state.cooldown, active, restarted, red, blue, self.last_action[RED],
+                                self.last_action[BLUE], self.episode_step, self.done, outcome, reward, terminated,
+                                truncated, dead_red, dead_blue, avail, obs, global_state, *self._up_args)
+        global_state = feats.finish_state(obs, global_state) if self.encode_state else None
+        self._encoded[RED] = (avail, obs, global_state)
+        self._avail_cache[RED] = avail
         if n_ended:
             ended = terminated | truncated
             self._stats.record(self._name_ids[ended], outcome[ended], truncated[ended])
+        if hook is not None:
+            self._lap(hook, "outcome and features", clock)
         return StepResult(reward, terminated, truncated, outcome, dead_red, dead_blue, active, self._names.tolist(),
-                          restarted & active)
+                          restarted & active, replaced, self.episode_step.copy(), avail, obs, global_state)
+
+    def _act(self, script: Script, side: int, commands: Commands, active: np.ndarray) -> None:
+        try:
+            script.act(self.side_view(side), commands, active)
+        except Exception as err:
+            self._error = err
+            raise
+
+    def _decode(self, side: int, actions: Any, active: np.ndarray, replace: bool, replaced: np.ndarray,
+                hint: str) -> np.ndarray:
+        """One side's actions, validated, checked against its masks and written as engine commands (one kernel)."""
+        feats = self.features[side]
+        acts = validate_actions(actions, (self.batch_size, feats.n_agents), feats.n_actions, SIDE_NAMES[side])
+        avail = self.avail_actions(side)
+        state, cmd = self.backend.state, self.commands
+        bad = check_decode_batch(acts, avail, active, replace, replaced, state.x, state.y, cmd.kind, cmd.target,
+                                 cmd.x, cmd.y, *feats.decode_args)
+        if bad >= 0:
+            raise_unavailable(feats, acts, avail, bad, hint)
+        return acts
+
+    @staticmethod
+    def _lap(hook: Any, phase: str, since: float) -> float:
+        now = time.perf_counter()
+        hook(phase, now - since)
+        return now
 
     # -----------------------------------------------------------------------------------------------------------
     # Features.
@@ -294,25 +392,36 @@ class TwoPlayerCore:
 
     def observations(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:
         """float32 ``(B, n, obs_size)`` (a new array unless ``out`` is given)."""
-        side = self._side(side)
-        return self.features[side].observations(self.backend.state, self.avail_actions(side),
-                                                self.last_action[side], self.episode_step, out=out)
+        obs = self.encode(side)[1]
+        if out is None:
+            return obs.copy()
+        out[...] = obs
+        return out
 
     def global_state(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:
         """float32 ``(B, state_size)`` (a new array unless ``out`` is given)."""
         side = self._side(side)
-        obs = self.observations(side) if self.options.obs_instead_of_state else None
-        return self.features[side].global_state(self.backend.state, self.last_action[side], self.episode_step,
-                                                obs=obs, out=out)
+        state = self.encode(side)[2]
+        if state is None:  # this side's encoding left the state out: the env layer did not need it
+            feats = self.features[side]
+            return feats.global_state(self.backend.state, self.last_action[side], self.episode_step, out=out,
+                                      obs=self.encode(side)[1] if self.options.obs_instead_of_state else None)
+        if out is None:
+            return state.copy()
+        out[...] = state
+        return out
 
-    def encode(self, side: int = RED) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The values of :meth:`avail_actions`, :meth:`observations` and :meth:`global_state` in one pass, as arrays
-        for this state (the masks also fill the ``avail_actions`` cache: treat them as read-only)."""
+    def encode(self, side: int = RED) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The masks, observations and global state of the current state, as the last step or reset left them
+        (encoded now when nothing has since: one kernel call). The state is None when the last step's encoding
+        left it out (``encode_state=False``). Shared arrays: treat them as read-only."""
         side = self._side(side)
-        avail, obs, state = self.features[side].encode(self.backend.state, self.last_action[side], self.episode_step)
-        if self._avail_cache[side] is None:
+        if self._encoded[side] is None:
+            feats = self.features[side]
+            avail, obs, state = feats.encode(self.backend.state, self.last_action[side], self.episode_step)
+            self._encoded[side] = (avail, obs, state)
             self._avail_cache[side] = avail
-        return avail, obs, state
+        return self._encoded[side]
 
     def visibility(self, side: int = RED) -> np.ndarray:
         """bool ``(B, n, n + m)``: SMAC's visibility matrix per battle."""
@@ -320,9 +429,15 @@ class TwoPlayerCore:
         return self.features[side].visibility(self.backend.state)
 
     def side_view(self, side: int) -> SideView:
-        """A :class:`~smac_hard_gym.opponents.api.SideView` of ``side`` over the live state."""
-        feats = self.features[self._side(side)]
-        return SideView(self.backend.state, self.spec, feats.side, feats.own, feats.enemy, self.episode_step)
+        """A :class:`~smac_hard_gym.opponents.api.SideView` of ``side`` over the live state (one per side, kept
+        while the backend keeps its state arrays, so what a view caches about the map is worked out once)."""
+        side = self._side(side)
+        view, state = self._views[side], self.backend.state
+        if view is None or view.state is not state:
+            feats = self.features[side]
+            view = SideView(state, self.spec, feats.side, feats.own, feats.enemy, self.episode_step)
+            self._views[side] = view
+        return view
 
     def opponent_names(self) -> list[str]:
         """The opponent playing each battle's current episode (asked of the script at each reset)."""
@@ -348,10 +463,31 @@ class TwoPlayerCore:
     # Helpers.
 
     def invalidate(self) -> None:
-        """Forget cached available actions: call after writing into ``state`` by hand."""
+        """Forget the cached masks and encodings: call after writing into ``state`` by hand."""
         self._avail_cache = [None, None]
+        self._encoded = [None, None]
 
     _invalidate = invalidate
+
+    def _refresh(self, rows: np.ndarray) -> None:
+        """After battles ``rows`` restarted: a partial reset re-encodes those rows into copies of red's cached
+        arrays (the previous ones may be held by the caller, as a step's result); otherwise forget the caches."""
+        encoded = self._encoded[RED]
+        self._invalidate()
+        if encoded is None or len(np.unique(rows)) == self.batch_size:
+            return
+        feats = self.features[RED]
+        fresh = feats.encode(self.backend.state, self.last_action[RED], self.episode_step, rows=rows)
+        spliced = []
+        for old, new in zip(encoded, fresh, strict=True):
+            if old is None:
+                spliced.append(None)
+                continue
+            array = old.copy()
+            array[rows] = new
+            spliced.append(array)
+        self._encoded[RED] = tuple(spliced)
+        self._avail_cache[RED] = spliced[0]
 
     def _check_open(self) -> None:
         if self._closed:
@@ -385,6 +521,7 @@ class TwoPlayerCore:
             restart = ~self._has_rng[rows]
             for b in rows[restart]:
                 self.rngs[b] = np.random.default_rng()
+                self.red_rngs[b] = np.random.default_rng()
             self._has_rng[rows] = True
             fresh = np.random.default_rng().integers(0, 2**63, size=len(rows)) if restart.any() else None
             return restart, fresh
@@ -401,6 +538,7 @@ class TwoPlayerCore:
                 raise ValueError(f"seeds must be non-negative, got {s} for battle {b}")
             self.seeds[b] = int(s)
             self.rngs[b] = np.random.default_rng(int(s))
+            self.red_rngs[b] = np.random.default_rng([int(s), 2])
             self._has_rng[b] = True
             engine_seeds[k] = np.random.default_rng([int(s), 1]).integers(0, 2**63)
         return np.ones(len(rows), dtype=bool), engine_seeds

@@ -1,8 +1,8 @@
 """``SMACHardEnv``: the Gymnasium single-agent view of a SMAC-HARD battle (one joint controller for all agents).
 
-``gymnasium.make("SMACHard-3m-v0")`` builds one. :class:`JointView` encodes the two-player core's red side as that
-joint view (spaces, observations, masks, action checks) for a whole batch, so the native vector env shares it and
-its battles match single envs exactly.
+``gymnasium.make("SMACHard-3m-v0")`` builds one: a two-player core of one battle, whose step result row 0 the
+:class:`~smac_hard_gym.envs.joint_view.JointView` translates, as it translates every row for the native vector env
+(so its battles match single envs exactly).
 """
 
 from __future__ import annotations
@@ -12,26 +12,22 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.envs.core import TwoPlayerCore
-from smac_hard_gym.smac.actions import ResetNeededError, available_actions, check_actions, validate_actions
+from smac_hard_gym.envs.joint_view import OBS_MODES, JointView
+from smac_hard_gym.smac.actions import ResetNeededError, validate_actions
 from smac_hard_gym.smac.features import SmacOptions
-from smac_hard_gym.smac.kernels import first_invalid_action
-from smac_hard_gym.units import STATS, S
 
 __all__ = ["SMACHardEnv", "JointView", "OBS_MODES", "INVALID_ACTION_POLICIES", "RENDER_FPS", "make_options",
            "check_invalid_action"]
 
-OBS_MODES = ("joint", "joint+state", "dict")
 INVALID_ACTION_POLICIES = ("noop", "raise")  # the first is the default
 # Appended to an unavailable action's error in the gymnasium envs: how to get the other policy.
 RAISE_HINT = ("; invalid_action='raise' is set (for debugging): the default invalid_action='noop' "
               "(gymnasium.make(id, invalid_action='noop')) replaces unavailable actions by a legal one and counts them "
               "in info['invalid_actions']")
 RENDER_FPS = 8  # frames per second when shown: 4x the Normal-speed game time of step_mul=8 loops per step
-OBS_LOW = -1.0  # SMAC features are ratios in [-1, 1] (offsets / sight range, health / max, one-hots); see _state_high
 
 
 def make_options(options: SmacOptions | dict | None, smac_options: dict[str, Any],
@@ -65,108 +61,6 @@ def check_invalid_action(policy: str) -> str:
     if not isinstance(policy, str) or policy not in INVALID_ACTION_POLICIES:
         raise ValueError(f"invalid_action must be one of {INVALID_ACTION_POLICIES}, got {policy!r}")
     return policy
-
-
-def _state_high(core: TwoPlayerCore) -> float:
-    """Upper bound of the global state: its cooldown column (cooldown / SMAC's normaliser) exceeds 1 for some units
-    (hydralisk: 13.2 loops over SMAC's 10), so it is the largest such ratio among the learner's units, at least 1."""
-    feats = core.features[RED]
-    utype = feats.utype[feats.own]
-    timer_max = np.where(feats.own_healer, STATS[utype, S["energy_max"]], STATS[utype, S["cooldown"]])
-    return max(1.0, float((timer_max / feats.own_max_cooldown).max()))
-
-
-class JointView:
-    """The learner's side of a core as one joint agent: spaces, batched observations, masks and action checks.
-
-    ``obs_mode`` picks the observation: ``"joint"`` (every agent's SMAC observation, flattened agent-major),
-    ``"joint+state"`` (that, then SMAC's global state) or ``"dict"`` (``obs`` (n_agents, obs_size), ``state``
-    (state_size,) and ``action_mask`` (n_agents, n_actions) int8).
-    """
-
-    def __init__(self, core: TwoPlayerCore, obs_mode: str = "joint") -> None:
-        if obs_mode not in OBS_MODES:
-            raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
-        feats = core.features[RED]
-        self.core = core
-        self.obs_mode = obs_mode
-        self.n_agents, self.n_actions = feats.n_agents, feats.n_actions
-        self.obs_size, self.state_size = feats.obs_size, feats.state_size
-        self.mask_size = self.n_agents * self.n_actions
-        self.action_space = spaces.MultiDiscrete(np.full(self.n_agents, self.n_actions, dtype=np.int64))
-        joint = self.n_agents * self.obs_size
-        state_high = _state_high(core)
-        if obs_mode == "joint":
-            self.observation_space: spaces.Space = spaces.Box(OBS_LOW, 1.0, (joint,), np.float32)
-        elif obs_mode == "joint+state":
-            high = np.concatenate([np.ones(joint), np.full(self.state_size, state_high)]).astype(np.float32)
-            self.observation_space = spaces.Box(np.full_like(high, OBS_LOW), high, dtype=np.float32)
-        else:
-            self.observation_space = spaces.Dict({
-                "obs": spaces.Box(OBS_LOW, 1.0, (self.n_agents, self.obs_size), np.float32),
-                "state": spaces.Box(OBS_LOW, state_high, (self.state_size,), np.float32),
-                "action_mask": spaces.Box(0, 1, (self.n_agents, self.n_actions), np.int8),
-            })
-
-    def observations(self) -> np.ndarray | dict[str, np.ndarray]:
-        """Fresh batched observations: ``(B, dim)`` float32, or a dict of ``(B, ...)`` arrays in ``"dict"`` mode."""
-        core = self.core
-        state = core.global_state(RED) if self.obs_mode != "joint" else None
-        return self._encode(core.observations(RED), core.avail_actions(RED), state)
-
-    def terminal(self, rows: np.ndarray) -> tuple[np.ndarray | dict[str, np.ndarray], np.ndarray]:
-        """Observations and int8 masks ``(len(rows), n_agents * n_actions)`` of the battles ``rows`` only, from the
-        same features: a vector env reads its terminal observations this way before resetting those battles."""
-        obs, avail, state = self._rows(np.asarray(rows, dtype=np.int64))
-        return self._encode(obs, avail, state), avail.reshape(len(rows), self.mask_size).view(np.int8)
-
-    def _encode(self, obs: np.ndarray, avail: np.ndarray, state: np.ndarray | None) -> Any:
-        batch = obs.shape[0]
-        if self.obs_mode == "joint":
-            return obs.reshape(batch, -1)
-        if self.obs_mode == "joint+state":
-            return np.concatenate([obs.reshape(batch, -1), state], axis=1)
-        return {"obs": obs, "state": state, "action_mask": avail.astype(np.int8)}
-
-    def _rows(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        core, feats = self.core, self.core.features[RED]
-        state, last_action, steps = core.state, core.last_action[RED], core.episode_step
-        avail = available_actions(feats, state, rows=rows)
-        obs = feats.observations(state, avail, last_action, steps, rows=rows)
-        global_state = None
-        if self.obs_mode != "joint":
-            global_state = feats.global_state(state, last_action, steps, rows=rows,
-                                              obs=obs if core.options.obs_instead_of_state else None)
-        return obs, avail, global_state
-
-    def masks(self, dtype: type = bool) -> np.ndarray:
-        """Fresh ``(B, n_agents * n_actions)`` array of the available actions, agent-major (bool, or ``dtype``)."""
-        masks = self.core.avail_actions(RED).reshape(-1, self.mask_size)
-        # bool and int8 share a layout: a plain copy is several times faster than a conversion.
-        return masks.view(dtype).copy() if np.dtype(dtype).itemsize == 1 else masks.astype(dtype)
-
-    def resolve_actions(self, actions: Any, policy: str, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Actions ``(B, n_agents)`` as a fresh int64 array and the number replaced per battle.
-
-        Types, shape and range are checked first (:func:`~smac_hard_gym.smac.actions.validate_actions`: ``TypeError`` or
-        ``InvalidActionError``, whatever the policy). Then an unavailable action in an active battle raises
-        :class:`~smac_hard_gym.smac.actions.InvalidActionError` naming the battle, agent and available actions
-        (``policy="raise"``), or is replaced by the agent's first available action (``"noop"``): no-op (0) for a
-        dead agent, stop (1) for a living one. Nothing changes state here.
-        """
-        acts = validate_actions(actions, (self.core.batch_size, self.n_agents), self.n_actions, "red")
-        avail = self.core.avail_actions(RED)
-        active = np.ascontiguousarray(active, dtype=bool)
-        none = np.zeros(acts.shape[0], dtype=np.int64)
-        if policy == "raise":
-            check_actions(self.core.features[RED], acts, avail, active, hint=RAISE_HINT)
-            return acts, none
-        if first_invalid_action(acts, avail, active) < 0:  # the usual case (masked policies): one cheap pass
-            return acts, none
-        bad = ~np.take_along_axis(avail, acts[..., None], axis=2)[..., 0]
-        bad &= active[:, None]
-        acts[bad] = avail[bad].argmax(axis=1)
-        return acts, np.count_nonzero(bad, axis=1).astype(np.int64)
 
 
 class SMACHardEnv(gym.Env):
@@ -245,8 +139,9 @@ class SMACHardEnv(gym.Env):
         self.core = TwoPlayerCore(map_name, 1, opponent=opponent, opponent_probs=opponent_probs, backend=backend,
                                   step_mul=step_mul,
                                   options=make_options(options, smac_options, keywords_of(SMACHardEnv.__init__)),
-                                  backend_options=backend_options, opponent_isolation=opponent_isolation)
-        self.view = JointView(self.core, obs_mode)
+                                  backend_options=backend_options, opponent_isolation=opponent_isolation,
+                                  encode_state=obs_mode != "joint")
+        self.view = JointView(self.core.features[RED], obs_mode, self.core.episode_limit)
         self.map_name = self.core.spec.name
         self.obs_mode = obs_mode
         self.n_agents, self.n_actions = self.view.n_agents, self.view.n_actions
@@ -265,36 +160,34 @@ class SMACHardEnv(gym.Env):
         super().reset(seed=seed)
         self.core.reset(seed=seed)
         self._needs_reset = False
-        return self._observation(), {"opponent": self.core.opponent_names()[0],
-                                     "action_mask": self._mask().astype(np.int8)}
+        avail, obs, state = self.core.encode(RED)
+        return self._row(self.view.observation(avail, obs, state)), {
+            "opponent": self.core.opponent_names()[0], "action_mask": self.view.masks(avail, np.int8)[0]}
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """One step with every agent's action (see Action Space); a rejected action changes nothing."""
         if self._needs_reset:
             raise ResetNeededError("call reset() before step(): the episode is over (or never started)")
         acts = validate_actions(action, (self.n_agents,), self.n_actions, "red")
-        acts, replaced = self.view.resolve_actions(acts[None], self.invalid_action, ~self.core.done)
-        result = self.core.step(acts)
-        # A game the sc2 backend lost and restarted ended without a result: truncated, flagged in info.
-        restarted = bool(result.restarted[0])
-        terminated = bool(result.terminated[0]) and not restarted
-        # Truncated at the limit even when the battle also ended on that step, as gymnasium's TimeLimit says.
-        truncated = bool(self.core.episode_step[0] >= self.episode_limit) or restarted
+        result = self.core.step(acts[None], replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT)
+        step = self.view.translate(result)
+        terminated, truncated = bool(step.terminated[0]), bool(step.truncated[0])
         self._needs_reset = terminated or truncated
+        values = step.info
         info: dict[str, Any] = {
-            "battle_won": bool(result.battle_won[0, RED]), "dead_allies": int(result.dead_red[0]),
-            "dead_enemies": int(result.dead_blue[0]), "opponent": result.opponent[0],
-            "action_mask": self._mask().astype(np.int8),
+            "battle_won": bool(values["battle_won"][0]), "dead_allies": int(values["dead_allies"][0]),
+            "dead_enemies": int(values["dead_enemies"][0]), "opponent": result.opponent[0],
+            "action_mask": self.view.masks(result.avail, np.int8)[0],
         }
         if self.invalid_action == "noop":
-            info["invalid_actions"] = int(replaced[0])
-        if restarted:
+            info["invalid_actions"] = int(values["invalid_actions"][0])
+        if values["restarted"][0]:
             info["restarted"] = True
-        return self._observation(), float(result.reward[0, RED]), terminated, truncated, info
+        return self._row(step.obs), float(step.reward[0]), terminated, truncated, info
 
     def action_masks(self) -> np.ndarray:
         """Legal actions of the current state: flat bool ``(n_agents * n_actions,)``, agent-major (a new array)."""
-        return self._mask()
+        return self.view.masks(self.core.avail_actions(RED))[0]
 
     def render(self) -> np.ndarray | None:
         """The battle as an RGB frame ``(H, W, 3)`` uint8 (``"rgb_array"``), or shown in a window (``"human"``)."""
@@ -316,11 +209,8 @@ class SMACHardEnv(gym.Env):
             self._renderer = None
         self.core.close()
 
-    def _observation(self) -> Any:
-        obs = self.view.observations()
+    @staticmethod
+    def _row(obs: Any) -> Any:
         if isinstance(obs, dict):
             return {key: value[0] for key, value in obs.items()}
         return obs[0]
-
-    def _mask(self) -> np.ndarray:
-        return self.view.masks()[0]

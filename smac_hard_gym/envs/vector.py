@@ -21,9 +21,10 @@ from gymnasium.vector.utils import batch_space
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.envs.autoreset import parse_autoreset_mode
 from smac_hard_gym.envs.core import TwoPlayerCore
-from smac_hard_gym.envs.gym_env import RENDER_FPS, JointView, check_invalid_action, keywords_of, make_options
+from smac_hard_gym.envs.gym_env import RAISE_HINT, RENDER_FPS, check_invalid_action, keywords_of, make_options
+from smac_hard_gym.envs.joint_view import OBS_MODES, JointView
 from smac_hard_gym.smac.actions import ResetNeededError
-from smac_hard_gym.smac.features import RED_WON, SmacOptions
+from smac_hard_gym.smac.features import SmacOptions
 
 __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 
@@ -79,18 +80,19 @@ class NativeVectorEnv(VectorEnv):
         self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
         self.num_envs = int(num_envs)
         self.invalid_action = invalid_action
+        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not isinstance(
+                max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be a positive int or None, got {max_episode_steps!r}")
+        if obs_mode not in OBS_MODES:
+            raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
         self.core = TwoPlayerCore(map_name, self.num_envs, opponent=opponent, opponent_probs=opponent_probs,
                                   backend=backend, step_mul=step_mul,
                                   options=make_options(options, smac_options, keywords_of(NativeVectorEnv.__init__)),
-                                  backend_options=backend_options, opponent_isolation=opponent_isolation)
-        self.view = JointView(self.core, obs_mode)
+                                  backend_options=backend_options, opponent_isolation=opponent_isolation,
+                                  encode_state=obs_mode != "joint", episode_limit=max_episode_steps)
         self.map_name = self.core.spec.name
-        self.episode_limit = self.core.spec.episode_limit
-        if max_episode_steps is not None:
-            if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
-                    or max_episode_steps < 1:
-                raise ValueError(f"max_episode_steps must be a positive int or None, got {max_episode_steps!r}")
-            self.episode_limit = min(self.episode_limit, int(max_episode_steps))
+        self.episode_limit = self.core.episode_limit
+        self.view = JointView(self.core.features[RED], obs_mode, self.episode_limit)
         self.render_battles = self._check_render_battles(render_battles)
         self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": ["rgb_array", "human"],
                          "render_fps": RENDER_FPS}
@@ -120,7 +122,8 @@ class NativeVectorEnv(VectorEnv):
             super().reset(seed=int(seed))
         self._reset_battles(rows, seeds)
         self._needs_reset = False
-        return self.view.observations(), self._info(np.zeros(self.num_envs, dtype=bool), rows)
+        avail, obs, state = self.core.encode(RED)
+        return self.view.observation(avail, obs, state), self._info(np.zeros(self.num_envs, dtype=bool), rows, avail)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One step of every battle with actions ``(num_envs, n_agents)``; actions are checked as in
@@ -131,46 +134,48 @@ class NativeVectorEnv(VectorEnv):
         if mode == AutoresetMode.DISABLED and self._ended.any():
             raise ResetNeededError(f"battles {np.flatnonzero(self._ended).tolist()} ended and autoreset is "
                                    "disabled; reset them with reset(options={'reset_mask': mask}) before stepping")
-        core = self.core
-        acts, replaced = self.view.resolve_actions(actions, self.invalid_action, ~core.done)
-        result = core.step(acts)
-        # A game the sc2 backend lost and restarted ended without a result: truncated, flagged in infos.
-        terminated = result.terminated & ~result.restarted
-        # Truncated at the limit even when the battle also ended on that step, as gymnasium's TimeLimit says.
-        truncated = result.stepped & ((core.episode_step >= self.episode_limit) | result.restarted)
-        core.done |= truncated  # freeze the battle until its reset, as the core does at the map's own limit
+        core, view = self.core, self.view
+        result = core.step(actions, replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT)
+        step = view.translate(result)
+        terminated, truncated = step.terminated, step.truncated
         ended = terminated | truncated
-        rewards = result.reward[:, RED].astype(np.float64)
+        rewards = step.reward.astype(np.float64)
 
         stepped = result.stepped.copy()
         resets = np.zeros(self.num_envs, dtype=bool)
         infos: dict[str, Any] = {}
         if mode == AutoresetMode.SAME_STEP and ended.any():
+            # The terminal observations are rows of this step's encoding; the new episodes' replace them below.
             rows = np.flatnonzero(ended)
-            final_obs, final_masks = self.view.terminal(rows)
+            final_obs = step.obs
             infos["final_obs"] = np.full(self.num_envs, None, dtype=object)
             if isinstance(final_obs, dict):
-                for k, b in enumerate(rows):
-                    infos["final_obs"][b] = {key: v[k] for key, v in final_obs.items()}
+                for b in rows.tolist():
+                    infos["final_obs"][b] = {key: v[b].copy() for key, v in final_obs.items()}
             else:
-                for k, b in enumerate(rows.tolist()):
-                    infos["final_obs"][b] = final_obs[k]
+                for b in rows.tolist():
+                    infos["final_obs"][b] = final_obs[b].copy()
             infos["_final_obs"] = ended.copy()
-            masks = np.zeros((self.num_envs, self.view.mask_size), dtype=np.int8)
-            masks[rows] = final_masks
-            infos["final_info"] = self._info(ended, resets, result, replaced, masks)
+            masks = np.zeros((self.num_envs, view.mask_size), dtype=np.int8)
+            masks[rows] = view.masks(result.avail[rows], np.int8)
+            infos["final_info"] = self._info(ended, resets, result.avail, step, masks)
             infos["_final_info"] = ended.copy()
             resets, stepped = ended, stepped & ~ended
         elif mode == AutoresetMode.NEXT_STEP:
             resets = self._ended.copy()
         self._reset_battles(resets, None)
         self._ended = ended if mode != AutoresetMode.SAME_STEP else np.zeros(self.num_envs, dtype=bool)
-        infos.update(self._info(stepped, resets, result, replaced))
-        return self.view.observations(), rewards, terminated, truncated, infos
+        if resets.any():
+            avail, obs, state = core.encode(RED)
+            observation = view.observation(avail, obs, state)
+        else:
+            avail, observation = result.avail, step.obs
+        infos.update(self._info(stepped, resets, avail, step))
+        return observation, rewards, terminated, truncated, infos
 
     def action_masks(self) -> np.ndarray:
         """Legal actions of the current observations: bool ``(num_envs, n_agents * n_actions)`` (a new array)."""
-        return self.view.masks()
+        return self.view.masks(self.core.avail_actions(RED))
 
     def render(self) -> np.ndarray | None:
         """Battle ``render_battles`` as an RGB frame, or a grid of several (``"rgb_array"``); ``"human"`` shows it."""
@@ -222,24 +227,25 @@ class NativeVectorEnv(VectorEnv):
             self.core.reset(unseeded)
         self._ended[rows] = False
 
-    def _info(self, stepped: np.ndarray, resets: np.ndarray, result: Any = None,
-              replaced: np.ndarray | None = None, masks: np.ndarray | None = None) -> dict[str, Any]:
-        """Batched infos as single envs give them: step keys for the ``stepped`` battles, ``opponent`` and
-        ``action_mask`` (of the current state, or ``masks``: given already zero outside those battles) for those and
-        the ``resets`` battles; each key with its ``_key``."""
+    def _info(self, stepped: np.ndarray, resets: np.ndarray, avail: np.ndarray, step: Any = None,
+              masks: np.ndarray | None = None) -> dict[str, Any]:
+        """Batched infos as single envs give them: the step's keys for the ``stepped`` battles, ``opponent`` and
+        ``action_mask`` (of the masks ``avail``, or ``masks``: given already zero outside those battles) for those
+        and the ``resets`` battles; each key with its ``_key``."""
         values: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         if stepped.any():
-            values["battle_won"] = (result.outcome == RED_WON, stepped)
-            values["dead_allies"] = (np.array(result.dead_red, dtype=np.int64), stepped)
-            values["dead_enemies"] = (np.array(result.dead_blue, dtype=np.int64), stepped)
+            info = step.info
+            values["battle_won"] = (info["battle_won"].copy(), stepped)
+            values["dead_allies"] = (info["dead_allies"].copy(), stepped)
+            values["dead_enemies"] = (info["dead_enemies"].copy(), stepped)
             if self.invalid_action == "noop":
-                values["invalid_actions"] = (replaced.copy(), stepped)
-            if result.restarted.any():
-                values["restarted"] = (result.restarted.copy(), stepped)
+                values["invalid_actions"] = (info["invalid_actions"].copy(), stepped)
+            if info["restarted"].any():
+                values["restarted"] = (info["restarted"].copy(), stepped)
         shown = stepped | resets
         if shown.any():
             values["opponent"] = (self.core.opponent_name_array(), shown)
-            values["action_mask"] = (self.view.masks(np.int8) if masks is None else masks, shown)
+            values["action_mask"] = (self.view.masks(avail, np.int8) if masks is None else masks, shown)
         infos: dict[str, Any] = {}
         for key, (value, rows) in values.items():
             # Given masks already hold zeros outside their rows.

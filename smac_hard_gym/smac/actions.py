@@ -37,12 +37,12 @@ from smac_hard_gym.smac.features import SIDE_NAMES, SideFeatures
 from smac_hard_gym.smac.kernels import (
     N_ACTIONS_NO_ATTACK,
     available_actions_batch,
-    decode_actions_batch,
+    check_decode_batch,
     first_invalid_action,
 )
 
 __all__ = ["InvalidActionError", "ResetNeededError", "available_actions", "check_actions", "validate_actions",
-           "decode_actions", "action_name"]
+           "decode_actions", "raise_unavailable", "action_name"]
 
 ACTION_NOOP, ACTION_STOP = 0, 1
 _MOVE_WORDS = ("move north", "move south", "move east", "move west")
@@ -185,8 +185,7 @@ def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray |
     rows = feats.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
     if out is None:
         out = np.empty((len(rows), feats.n_agents, feats.n_actions), dtype=bool)
-    available_actions_batch(rows, state.x, state.y, state.alive, feats.own.start, feats.enemy.start, feats.own_healer,
-                            feats.heal_target_ok, feats.pathable, feats.move_amount / 2.0, feats.n_heal_targets, out)
+    available_actions_batch(rows, state.x, state.y, state.alive, out, *feats._avail_args)
     return out
 
 
@@ -203,21 +202,31 @@ def check_actions(feats: SideFeatures, actions: Any, avail: np.ndarray, active: 
     check = np.ones(batch, dtype=bool) if active is None else np.ascontiguousarray(active, dtype=bool)
     bad = first_invalid_action(acts, avail, check)
     if bad >= 0:
-        b, i = divmod(int(bad), n)
-        a = int(acts[b, i])
-        who = _agent((b, i), (batch, n), SIDE_NAMES[feats.side])
-        healer = bool(feats.own_healer[i])
-        allowed = [int(v) for v in np.flatnonzero(avail[b, i])]
-        names = ", ".join(f"{v} ({action_name(v, healer)})" for v in allowed)
-        raise InvalidActionError(f"{who}: action {a} ({action_name(a, healer)}) is not available; "
-                                 f"available: {names}{hint}")
+        raise_unavailable(feats, acts, avail, bad, hint)
     return acts
+
+
+def raise_unavailable(feats: SideFeatures, actions: np.ndarray, avail: np.ndarray, bad: int, hint: str = "") -> None:
+    """Raise :class:`InvalidActionError` for the unavailable action at flat index ``bad`` (battle * n + agent),
+    naming the agent, its action and the available ones (then ``hint``)."""
+    batch, n = avail.shape[0], feats.n_agents
+    b, i = divmod(int(bad), n)
+    a = int(actions[b, i])
+    who = _agent((b, i), (batch, n), SIDE_NAMES[feats.side])
+    healer = bool(feats.own_healer[i])
+    allowed = [int(v) for v in np.flatnonzero(avail[b, i])]
+    names = ", ".join(f"{v} ({action_name(v, healer)})" for v in allowed)
+    raise InvalidActionError(f"{who}: action {a} ({action_name(a, healer)}) is not available; "
+                             f"available: {names}{hint}")
 
 
 def decode_actions(feats: SideFeatures, state: BattleState, actions: np.ndarray, commands: Commands,
                    active: np.ndarray) -> None:
-    """Write the engine commands of validated ``actions`` ``(B, n_agents)`` into ``commands`` for this side's slots
-    in battles with ``active[b]`` (other battles' commands are left as they are)."""
-    decode_actions_batch(np.ascontiguousarray(actions, dtype=np.int64), np.ascontiguousarray(active, dtype=bool),
-                         state.x, state.y, feats.own.start, feats.enemy.start, feats.own_healer, feats.move_amount,
-                         commands.kind, commands.target, commands.x, commands.y)
+    """Write the engine commands of ``actions`` ``(B, n_agents)`` (in range; availability is not checked) into
+    ``commands`` for this side's slots in battles with ``active[b]`` (other battles' commands are left as they are):
+    the decoding half of the core's way down (:func:`~smac_hard_gym.smac.kernels.check_decode_batch`)."""
+    batch = state.alive.shape[0]
+    acts = validate_actions(actions, (batch, feats.n_agents), feats.n_actions, SIDE_NAMES[feats.side])
+    anything = np.ones((batch, feats.n_agents, feats.n_actions), dtype=bool)
+    check_decode_batch(acts, anything, np.ascontiguousarray(active, dtype=bool), False, np.zeros(batch, np.int64),
+                       state.x, state.y, commands.kind, commands.target, commands.x, commands.y, *feats.decode_args)

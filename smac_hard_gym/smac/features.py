@@ -270,19 +270,38 @@ class SideFeatures:
             self.state_size = (self.state_action_offset + opt.state_last_action * n * self.n_actions
                                + opt.state_timestep_number)
 
-        # The kernels' arguments: flags and offsets as small int arrays, per-slot tables contiguous.
-        self._obs_flags = np.array([opt.obs_all_health, opt.own_health, self.shield_bits_ally,
-                                    self.shield_bits_enemy, opt.obs_last_action, opt.obs_pathing_grid,
-                                    opt.obs_terrain_height, opt.obs_timestep_number], dtype=np.int64)
-        self._obs_layout = np.array([self.enemy_offset, self.ally_offset, self.own_offset, self.enemy_feats,
-                                     self.ally_feats], dtype=np.int64)
-        self._state_flags = np.array([self.shield_bits_ally, self.shield_bits_enemy, opt.state_last_action,
-                                      opt.state_timestep_number], dtype=np.int64)
-        self._state_layout = np.array([self.ally_state_feats, self.enemy_state_feats, self.state_enemy_offset,
-                                       self.state_action_offset, self.n_actions], dtype=np.int64)
-        self._frame = np.array([*self.center, *self.max_distance], dtype=np.float64)
         self.heal_target_ok = ~self.own_healer[:self.n_heal_targets]
         self._all_rows = np.arange(0, dtype=np.int64)
+
+        # The kernels' constant arguments, by the kernels' parameter names (fk.bind orders them per kernel).
+        self.constants: dict[str, object] = dict(
+            own_lo=self.own.start, enemy_lo=self.enemy.start, healer=self.own_healer,
+            heal_target_ok=self.heal_target_ok, n_heal_targets=self.n_heal_targets, pathable=self.pathable,
+            heights=self.terrain_height, half_move=self.move_amount / 2.0, move_amount=self.move_amount,
+            own_health_max=self.own_health_max, own_shield_max=self.own_shield_max,
+            enemy_health_max=self.enemy_health_max, enemy_shield_max=self.enemy_shield_max,
+            own_onehot=self.own_onehot, enemy_onehot=self.enemy_onehot, max_cooldown=self.own_max_cooldown,
+            probe_dx=self._probe_dx, probe_dy=self._probe_dy, episode_limit=float(self.episode_limit),
+            obs_flags=fk.pack(fk.OBS_FLAGS, all_health=opt.obs_all_health, own_health=opt.own_health,
+                              shield_ally=self.shield_bits_ally, shield_enemy=self.shield_bits_enemy,
+                              last_action=opt.obs_last_action, pathing=opt.obs_pathing_grid,
+                              height=opt.obs_terrain_height, timestep=opt.obs_timestep_number),
+            obs_layout=fk.pack(fk.OBS_LAYOUT, enemy_offset=self.enemy_offset, ally_offset=self.ally_offset,
+                               own_offset=self.own_offset, enemy_feats=self.enemy_feats, ally_feats=self.ally_feats),
+            state_flags=fk.pack(fk.STATE_FLAGS, shield_ally=self.shield_bits_ally,
+                                shield_enemy=self.shield_bits_enemy, last_action=opt.state_last_action,
+                                timestep=opt.state_timestep_number),
+            state_layout=fk.pack(fk.STATE_LAYOUT, ally_feats=self.ally_state_feats,
+                                 enemy_feats=self.enemy_state_feats, enemy_offset=self.state_enemy_offset,
+                                 action_offset=self.state_action_offset, n_actions=self.n_actions),
+            frame=fk.pack(fk.FRAME, np.float64, centre_x=self.center[0], centre_y=self.center[1],
+                          width=self.max_distance[0], height=self.max_distance[1]),
+        )
+        self._avail_args = fk.bind(fk.available_actions_batch, self.constants)
+        self._obs_args = fk.bind(fk.observations_batch, self.constants)
+        self._state_args = fk.bind(fk.global_state_batch, self.constants)
+        self._encode_args = fk.bind(fk.encode_batch, self.constants)
+        self.decode_args = fk.bind(fk.check_decode_batch, self.constants)
 
     def __repr__(self) -> str:
         return (f"SideFeatures(map={self.spec.name!r}, side={SIDE_NAMES[self.side]!r}, "
@@ -333,10 +352,7 @@ class SideFeatures:
         if out is None:
             out = np.empty((len(rows), self.n_agents, self.obs_size), dtype=np.float32)
         fk.observations_batch(rows, state.x, state.y, state.alive, state.health, state.shield, avail, last_action,
-                              episode_step, self.own.start, self.enemy.start, self.own_health_max,
-                              self.own_shield_max, self.enemy_health_max, self.enemy_shield_max, self.own_onehot,
-                              self.enemy_onehot, self._obs_flags, self.pathable, self.terrain_height, self._probe_dx,
-                              self._probe_dy, self._obs_layout, float(self.episode_limit), out)
+                              episode_step, out, *self._obs_args)
         return out
 
     def global_state(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
@@ -359,10 +375,7 @@ class SideFeatures:
         if out is None:
             out = np.empty((len(rows), self.state_size), dtype=np.float32)
         fk.global_state_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                              state.cooldown, last_action, episode_step, self.own.start, self.enemy.start,
-                              self.own_health_max, self.own_shield_max, self.enemy_health_max, self.enemy_shield_max,
-                              self.own_onehot, self.enemy_onehot, self.own_healer, self.own_max_cooldown, self._frame,
-                              self._state_flags, self._state_layout, float(self.episode_limit), out)
+                              state.cooldown, last_action, episode_step, out, *self._state_args)
         return out
 
     def encode(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
@@ -370,21 +383,24 @@ class SideFeatures:
         """Available actions, observations and global state in one kernel call (fresh arrays, the values of
         :func:`~smac_hard_gym.smac.actions.available_actions`, :meth:`observations` and :meth:`global_state`)."""
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
-        batch = len(rows)
+        avail, obs, global_state = self.outputs(len(rows), with_state=True)
+        fk.encode_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
+                        state.cooldown, last_action, episode_step, avail, obs, global_state, *self._encode_args)
+        return avail, obs, self.finish_state(obs, global_state)
+
+    def outputs(self, batch: int, with_state: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fresh arrays for an encoding of ``batch`` battles: masks, observations and the global state (zero rows
+        when the kernel is not to write it: not wanted, or copied from the observations)."""
         avail = np.empty((batch, self.n_agents, self.n_actions), dtype=bool)
         obs = np.empty((batch, self.n_agents, self.obs_size), dtype=np.float32)
-        copy_obs = self.options.obs_instead_of_state
-        global_state = np.empty((0 if copy_obs else batch, self.state_size), dtype=np.float32)
-        fk.encode_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                        state.cooldown, last_action, episode_step, self.own.start, self.enemy.start, self.own_healer,
-                        self.heal_target_ok, self.pathable, self.move_amount / 2.0, self.n_heal_targets,
-                        self.own_health_max, self.own_shield_max, self.enemy_health_max, self.enemy_shield_max,
-                        self.own_onehot, self.enemy_onehot, self._obs_flags, self.terrain_height, self._probe_dx,
-                        self._probe_dy, self._obs_layout, self.own_max_cooldown, self._frame, self._state_flags,
-                        self._state_layout, float(self.episode_limit), avail, obs, global_state)
-        if copy_obs:
-            global_state = obs.reshape(batch, self.state_size).copy()
-        return avail, obs, global_state
+        rows = batch if with_state and not self.options.obs_instead_of_state else 0
+        return avail, obs, np.empty((rows, self.state_size), dtype=np.float32)
+
+    def finish_state(self, obs: np.ndarray, global_state: np.ndarray) -> np.ndarray:
+        """The global state of an encoding the kernel wrote: with ``obs_instead_of_state``, the observations."""
+        if self.options.obs_instead_of_state:
+            return obs.reshape(obs.shape[0], self.state_size).copy()
+        return global_state
 
     def all_rows(self, state: BattleState) -> np.ndarray:
         """Indices of every battle of ``state`` (cached per batch size)."""
@@ -426,18 +442,11 @@ class RewardFunction:
         self.n_red = red.n_agents
         self.max_reward = np.array([red.max_reward(), blue.max_reward()], dtype=np.float64)
         self.divisor = (self.max_reward / options.reward_scale_rate) if options.reward_scale else np.ones(2)
-        # The kernels' form of the options: (death value, win, defeat, negative scale) and REWARD_FLAGS.
-        self.kernel_values = np.array([options.reward_death_value, options.reward_win, options.reward_defeat,
-                                 options.reward_negative_scale], dtype=np.float64)
-        self.kernel_flags = np.array([options.reward_sparse, options.reward_only_positive], dtype=np.int64)
-
-    def __call__(self, prev_hs: np.ndarray, prev_alive: np.ndarray, state: BattleState,
-                 outcome: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Rewards ``(B, 2)`` float32 ([red, blue]) for the step from (``prev_hs``, ``prev_alive``), the health plus
-        shield and alive flags of every unit before the step, to ``state``; ``outcome`` per battle (int8: RUNNING,
-        RED_WON, BLUE_WON or DRAW)."""
-        if out is None:
-            out = np.empty((state.alive.shape[0], 2), dtype=np.float32)
-        fk.rewards_batch(prev_hs, prev_alive, state.alive, state.health, state.shield, self.n_red,
-                         np.asarray(outcome, dtype=np.int8), self.kernel_values, self.kernel_flags, self.divisor, out)
-        return out
+        # The kernels' form of the options (constants of fk.finish_encode, by name).
+        self.constants = dict(
+            reward_values=fk.pack(fk.REWARD_VALUES, np.float64, death_value=options.reward_death_value,
+                                  win=options.reward_win, defeat=options.reward_defeat,
+                                  negative_scale=options.reward_negative_scale),
+            reward_flags=fk.pack(fk.REWARD_FLAGS, sparse=options.reward_sparse,
+                                 only_positive=options.reward_only_positive),
+            divisor=self.divisor)

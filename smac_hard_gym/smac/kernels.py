@@ -21,9 +21,9 @@ from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP,
 
 __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
-    "OBS_FLAGS", "STATE_FLAGS", "REWARD_FLAGS",
+    "OBS_FLAGS", "OBS_LAYOUT", "STATE_FLAGS", "STATE_LAYOUT", "REWARD_VALUES", "REWARD_FLAGS", "pack", "bind",
     "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
-    "rewards_batch", "finish_step", "first_invalid_action", "decode_actions_batch",
+    "finish_encode", "first_invalid_action", "check_decode_batch",
 ]
 
 SHOOT_RANGE = 6.0  # SMAC: attack/heal available within this centre distance (<=), every unit
@@ -39,17 +39,51 @@ _SIGHT_SCALE = float(np.float32(1.0) / np.float32(SIGHT_RANGE))
 _MOVE_DX = np.array([0.0, 0.0, 1.0, -1.0])
 _MOVE_DY = np.array([1.0, -1.0, 0.0, 0.0])
 
-# Positions of the option flags in the int64 flag vectors the kernels take (SideFeatures builds them).
+# The small vectors of options and offsets the kernels take: each is built by name with :func:`pack` from one of
+# these tables, and the kernels read it through the index constants unpacked from the same table.
 OBS_FLAGS = ("all_health", "own_health", "shield_ally", "shield_enemy", "last_action", "pathing", "height",
              "timestep")
 _O_ALL_HEALTH, _O_OWN_HEALTH, _O_SHIELD_ALLY, _O_SHIELD_ENEMY, _O_LAST_ACTION, _O_PATHING, _O_HEIGHT, \
     _O_TIMESTEP = range(len(OBS_FLAGS))
+OBS_LAYOUT = ("enemy_offset", "ally_offset", "own_offset", "enemy_feats", "ally_feats")
+_L_ENEMY_OFFSET, _L_ALLY_OFFSET, _L_OWN_OFFSET, _L_ENEMY_FEATS, _L_ALLY_FEATS = range(len(OBS_LAYOUT))
 STATE_FLAGS = ("shield_ally", "shield_enemy", "last_action", "timestep")
 _S_SHIELD_ALLY, _S_SHIELD_ENEMY, _S_LAST_ACTION, _S_TIMESTEP = range(len(STATE_FLAGS))
+STATE_LAYOUT = ("ally_feats", "enemy_feats", "enemy_offset", "action_offset", "n_actions")
+_T_ALLY_FEATS, _T_ENEMY_FEATS, _T_ENEMY_OFFSET, _T_ACTION_OFFSET, _T_N_ACTIONS = range(len(STATE_LAYOUT))
+FRAME = ("centre_x", "centre_y", "width", "height")
+REWARD_VALUES = ("death_value", "win", "defeat", "negative_scale")
+_R_DEATH_VALUE, _R_WIN, _R_DEFEAT, _R_NEGATIVE_SCALE = range(len(REWARD_VALUES))
 REWARD_FLAGS = ("sparse", "only_positive")
+_R_SPARSE, _R_ONLY_POSITIVE = range(len(REWARD_FLAGS))
 
 kernel = njit(cache=True, error_model="numpy")
 inline = njit(cache=True, inline="always", error_model="numpy")
+
+
+def pack(table: tuple[str, ...], dtype: type = np.int64, **values: float) -> np.ndarray:
+    """The vector of ``values`` in the order of ``table`` (OBS_FLAGS, STATE_LAYOUT, ...): every name, no other."""
+    if set(values) != set(table):
+        raise KeyError(f"pack needs exactly {table}; missing {sorted(set(table) - set(values))}, "
+                       f"unknown {sorted(set(values) - set(table))}")
+    return np.array([values[name] for name in table], dtype=dtype)
+
+
+def bind(function: object, constants: dict[str, object]) -> tuple:
+    """The constant arguments of a kernel, by name: its parameters from the first one named in ``constants`` to the
+    last, looked up there. Call it as ``function(*call_arguments, *bind(function, constants))``.
+
+    Every kernel here takes its per-call arrays first and its per-side constants (SideFeatures.constants, plus the
+    core's outcome and reward constants) last, so no caller orders those by hand.
+    """
+    import inspect
+
+    names = list(inspect.signature(getattr(function, "py_func", function)).parameters)
+    first = next((k for k, name in enumerate(names) if name in constants), len(names))
+    missing = [name for name in names[first:] if name not in constants]
+    if missing:
+        raise KeyError(f"{getattr(function, '__name__', function)} needs the constants {missing}")
+    return tuple(constants[name] for name in names[first:])
 
 
 @inline
@@ -103,8 +137,8 @@ def _avail_battle(k, b, x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, p
 
 
 @kernel
-def available_actions_batch(rows, x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
-                            n_heal_targets, out):
+def available_actions_batch(rows, x, y, alive, out, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
+                            n_heal_targets):
     """Write the available actions of every agent of battles ``rows`` into ``out`` (bool (len(rows), n,
     n_actions)); see smac_hard_gym.smac.actions."""
     for k in range(rows.shape[0]):
@@ -123,8 +157,8 @@ def _observe_battle(k, b, x, y, alive, health, shield, avail, last_action, episo
     n, obs_size = out.shape[1], out.shape[2]
     m = enemy_health_max.shape[0]
     bits = own_onehot.shape[1]
-    enemy_offset, ally_offset, own_offset, enemy_feats, ally_feats = layout[0], layout[1], layout[2], layout[3], \
-        layout[4]
+    enemy_offset, ally_offset, own_offset = layout[_L_ENEMY_OFFSET], layout[_L_ALLY_OFFSET], layout[_L_OWN_OFFSET]
+    enemy_feats, ally_feats = layout[_L_ENEMY_FEATS], layout[_L_ALLY_FEATS]
     for i in range(n):
         o = out[k, i]
         for c in range(obs_size):
@@ -220,12 +254,11 @@ def _observe_battle(k, b, x, y, alive, health, shield, avail, last_action, episo
 
 
 @kernel
-def observations_batch(rows, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+def observations_batch(rows, x, y, alive, health, shield, avail, last_action, episode_step, out, own_lo, enemy_lo,
                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
-                       flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out):
+                       obs_flags, pathable, heights, probe_dx, probe_dy, obs_layout, episode_limit):
     """Write the observations of every agent of battles ``rows`` into ``out`` (float32 (len(rows), n,
-    obs_size)); ``avail`` is aligned with ``out``. ``flags`` follow OBS_FLAGS; ``layout`` is (enemy_offset,
-    ally_offset, own_offset, enemy_feats, ally_feats).
+    obs_size)); ``avail`` is aligned with ``out``. ``obs_flags`` follow OBS_FLAGS, ``obs_layout`` OBS_LAYOUT.
 
     One thread: writing the observations is bound by memory bandwidth, and a second thread measured no faster (3m,
     4096 battles: 0.58 ms on one thread, 0.75 ms on two).
@@ -233,7 +266,7 @@ def observations_batch(rows, x, y, alive, health, shield, avail, last_action, ep
     for k in range(rows.shape[0]):
         _observe_battle(k, rows[k], x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
                         own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
-                        enemy_onehot, flags, pathable, heights, probe_dx, probe_dy, layout, episode_limit, out)
+                        enemy_onehot, obs_flags, pathable, heights, probe_dx, probe_dy, obs_layout, episode_limit, out)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -247,9 +280,9 @@ def _state_battle(k, b, x, y, alive, health, shield, energy, cooldown, last_acti
     size = out.shape[1]
     n, m = own_health_max.shape[0], enemy_health_max.shape[0]
     bits = own_onehot.shape[1]
-    cx, cy, width, height = frame[0], frame[1], frame[2], frame[3]
-    ally_feats, enemy_feats, enemy_offset, action_offset, n_actions = layout[0], layout[1], layout[2], layout[3], \
-        layout[4]
+    cx, cy, width, height = frame[0], frame[1], frame[2], frame[3]  # as FRAME names them
+    ally_feats, enemy_feats, n_actions = layout[_T_ALLY_FEATS], layout[_T_ENEMY_FEATS], layout[_T_N_ACTIONS]
+    enemy_offset, action_offset = layout[_T_ENEMY_OFFSET], layout[_T_ACTION_OFFSET]
     o = out[k]
     for c in range(size):
         o[c] = 0.0
@@ -296,38 +329,48 @@ def _state_battle(k, b, x, y, alive, health, shield, energy, cooldown, last_acti
 
 
 @kernel
-def global_state_batch(rows, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo, enemy_lo,
-                       own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
-                       healer, max_cooldown, frame, flags, layout, episode_limit, out):
+def global_state_batch(rows, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, out, own_lo,
+                       enemy_lo, own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
+                       enemy_onehot, healer, max_cooldown, frame, state_flags, state_layout, episode_limit):
     """Write the global state of battles ``rows`` into ``out`` (float32 (len(rows), state_size)).
 
-    ``frame`` is (centre x, centre y, map width, map height); ``flags`` follow STATE_FLAGS; ``layout`` is
-    (ally_state_feats, enemy_state_feats, state_enemy_offset, state_action_offset, n_actions).
+    ``frame`` follows FRAME, ``state_flags`` STATE_FLAGS and ``state_layout`` STATE_LAYOUT.
     """
     for k in range(rows.shape[0]):
         _state_battle(k, rows[k], x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo,
                       enemy_lo, own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
-                      enemy_onehot, healer, max_cooldown, frame, flags, layout, episode_limit, out)
+                      enemy_onehot, healer, max_cooldown, frame, state_flags, state_layout, episode_limit, out)
+
+
+@kernel  # a call, not inlined: numba cannot inline a function with this many arguments into another
+def _encode_battle(k, b, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, avail, obs, state,
+                   own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move, n_heal_targets, own_health_max,
+                   own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot, obs_flags, heights,
+                   probe_dx, probe_dy, obs_layout, max_cooldown, frame, state_flags, state_layout, episode_limit):
+    _avail_battle(k, b, x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move, n_heal_targets,
+                  avail)
+    _observe_battle(k, b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
+                    own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
+                    obs_flags, pathable, heights, probe_dx, probe_dy, obs_layout, episode_limit, obs)
+    if state.shape[0] > 0:
+        _state_battle(k, b, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo,
+                      enemy_lo, own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
+                      enemy_onehot, healer, max_cooldown, frame, state_flags, state_layout, episode_limit, state)
 
 
 @kernel
-def encode_batch(rows, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo, enemy_lo,
-                 healer, heal_target_ok, pathable, half_move, n_heal_targets, own_health_max, own_shield_max,
-                 enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot, obs_flags, heights, probe_dx, probe_dy,
-                 obs_layout, max_cooldown, frame, state_flags, state_layout, episode_limit, avail, obs, state):
+def encode_batch(rows, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, avail, obs, state,
+                 own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move, n_heal_targets, own_health_max,
+                 own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot, obs_flags, heights,
+                 probe_dx, probe_dy, obs_layout, max_cooldown, frame, state_flags, state_layout, episode_limit):
     """Available actions, observations and (when ``state`` has rows) the global state of battles ``rows`` in one
-    call: what a one-battle SMAC loop reads every step, for the price of one kernel dispatch instead of three."""
+    call, into ``avail``, ``obs`` and ``state`` (row k for battle ``rows[k]``)."""
     for k in range(rows.shape[0]):
-        b = rows[k]
-        _avail_battle(k, b, x, y, alive, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move,
-                      n_heal_targets, avail)
-        _observe_battle(k, b, x, y, alive, health, shield, avail, last_action, episode_step, own_lo, enemy_lo,
-                        own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
-                        obs_flags, pathable, heights, probe_dx, probe_dy, obs_layout, episode_limit, obs)
-        if state.shape[0] > 0:
-            _state_battle(k, b, x, y, alive, health, shield, energy, cooldown, last_action, episode_step, own_lo,
-                          enemy_lo, own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot,
-                          enemy_onehot, healer, max_cooldown, frame, state_flags, state_layout, episode_limit, state)
+        _encode_battle(k, rows[k], x, y, alive, health, shield, energy, cooldown, last_action, episode_step, avail,
+                       obs, state, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move, n_heal_targets,
+                       own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
+                       obs_flags, heights, probe_dx, probe_dy, obs_layout, max_cooldown, frame, state_flags,
+                       state_layout, episode_limit)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -356,8 +399,9 @@ def _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue):
 
 @inline
 def _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward):
-    death_value, win, defeat, negative_scale = values[0], values[1], values[2], values[3]
-    sparse, only_positive = flags[0], flags[1]
+    death_value, win, defeat = values[_R_DEATH_VALUE], values[_R_WIN], values[_R_DEFEAT]
+    negative_scale = values[_R_NEGATIVE_SCALE]
+    sparse, only_positive = flags[_R_SPARSE], flags[_R_ONLY_POSITIVE]
     lost_red = lost_blue = 0.0
     died_red = died_blue = 0
     for u in range(alive.shape[1]):
@@ -389,55 +433,55 @@ def _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcom
 
 
 @kernel
-def rewards_batch(prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward):
-    """Both sides' rewards (float32 (B, 2): [red, blue]) for the step from (``prev_hs``, ``prev_alive``), health plus
-    shield and alive flags before the step, to the current arrays, and each battle's ``outcome``.
+def finish_encode(prev_hs, prev_alive, x, y, alive, health, shield, energy, cooldown, active, restarted, red_actions,
+                  blue_actions, last_red, last_blue, episode_step, done, outcome, reward, terminated, truncated,
+                  dead_red, dead_blue, avail, obs, state, fighter, n_red, step_limit, reward_values, reward_flags,
+                  divisor, own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move, n_heal_targets,
+                  own_health_max, own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot,
+                  obs_flags, heights, probe_dx, probe_dy, obs_layout, max_cooldown, frame, state_flags, state_layout,
+                  episode_limit):
+    """The way up of a core step, one pass per battle: the bookkeeping after the engine stepped the ``active``
+    battles, then red's encoding (``encode_batch``'s outputs) of every battle.
 
-    ``values`` is (death value, win, defeat, negative scale); ``flags`` follow REWARD_FLAGS; ``divisor`` scales each
-    side's reward.
-    """
-    for b in range(alive.shape[0]):
-        _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward)
-
-
-@kernel
-def finish_step(prev_hs, prev_alive, alive, health, shield, fighter, n_red, active, restarted, red_actions,
-                blue_actions, last_red, last_blue, episode_step, episode_limit, values, flags, divisor, done,
-                outcome, reward, terminated, truncated, dead_red, dead_blue):
-    """The two-player core's bookkeeping after the engine stepped the ``active`` battles, in one pass.
-
-    Counts the step and records the actions (``blue_actions`` with zero rows: a script played blue), then writes
-    outcome (a side is beaten when none of its ``fighter`` units is alive, SMAC's "only medivacs left" rule; both
-    beaten at once is a draw), rewards as ``rewards_batch`` does, dead counts, ``terminated`` (a result, or a
-    ``restarted`` game), ``truncated`` (``episode_limit`` reached without one) and marks ended battles ``done``.
+    Bookkeeping: counts the step and records the actions (zero rows of ``red_actions`` or ``blue_actions``: a script
+    played that side),
+    then writes outcome (a side is beaten when none of its ``fighter`` units is alive, SMAC's "only medivacs left"
+    rule; both beaten at once is a draw), both sides' rewards (``reward_values`` follow REWARD_VALUES,
+    ``reward_flags`` REWARD_FLAGS, ``divisor`` scales each side's), dead counts, ``terminated`` (a result, or a
+    ``restarted`` game), ``truncated`` (``step_limit`` reached without one) and marks ended battles ``done``.
     Battles not active, and restarted ones, get RUNNING and zero reward. Returns the number of battles that ended.
     """
     ended = 0
     for b in range(alive.shape[0]):
         _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue)
         terminated[b] = truncated[b] = False
-        if not active[b]:
+        if active[b]:
+            episode_step[b] += 1
+            if red_actions.shape[0] > 0:
+                for i in range(red_actions.shape[1]):
+                    last_red[b, i] = red_actions[b, i]
+            if blue_actions.shape[0] > 0:
+                for i in range(blue_actions.shape[1]):
+                    last_blue[b, i] = blue_actions[b, i]
+        if not active[b] or restarted[b]:
             outcome[b] = RUNNING
             reward[b, 0] = reward[b, 1] = 0.0
-            continue
-        episode_step[b] += 1
-        for i in range(red_actions.shape[1]):
-            last_red[b, i] = red_actions[b, i]
-        if blue_actions.shape[0] > 0:
-            for i in range(blue_actions.shape[1]):
-                last_blue[b, i] = blue_actions[b, i]
-        if restarted[b]:  # the backend lost the game: the episode ends without a result
-            outcome[b] = RUNNING
-            reward[b, 0] = reward[b, 1] = 0.0
-            terminated[b] = done[b] = True
-            ended += 1
-            continue
-        _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, values, flags, divisor, reward)
-        terminated[b] = outcome[b] != RUNNING
-        truncated[b] = not terminated[b] and episode_step[b] >= episode_limit
-        if terminated[b] or truncated[b]:
-            done[b] = True
-            ended += 1
+            if active[b]:  # the backend lost the game: the episode ends without a result
+                terminated[b] = done[b] = True
+                ended += 1
+        else:
+            _battle_rewards(b, prev_hs, prev_alive, alive, health, shield, n_red, outcome, reward_values,
+                            reward_flags, divisor, reward)
+            terminated[b] = outcome[b] != RUNNING
+            truncated[b] = not terminated[b] and episode_step[b] >= step_limit
+            if terminated[b] or truncated[b]:
+                done[b] = True
+                ended += 1
+        _encode_battle(b, b, x, y, alive, health, shield, energy, cooldown, last_red, episode_step, avail, obs, state,
+                       own_lo, enemy_lo, healer, heal_target_ok, pathable, half_move, n_heal_targets, own_health_max,
+                       own_shield_max, enemy_health_max, enemy_shield_max, own_onehot, enemy_onehot, obs_flags,
+                       heights, probe_dx, probe_dy, obs_layout, max_cooldown, frame, state_flags, state_layout,
+                       episode_limit)
     return ended
 
 
@@ -445,9 +489,8 @@ def finish_step(prev_hs, prev_alive, alive, health, shield, fighter, n_red, acti
 # Actions.
 
 
-@kernel
-def first_invalid_action(actions, avail, active):
-    """Flat index (battle * n + agent) of the first illegal action in an active battle, or -1."""
+@inline
+def _first_invalid(actions, avail, active):
     n_battles, n, n_actions = avail.shape
     for b in range(n_battles):
         if not active[b]:
@@ -460,15 +503,40 @@ def first_invalid_action(actions, avail, active):
 
 
 @kernel
-def decode_actions_batch(actions, active, x, y, own_lo, enemy_lo, healer, move_amount, kind, target, cmd_x, cmd_y):
-    """Write the engine commands of validated SMAC actions (B, n) into the command arrays for active battles."""
+def first_invalid_action(actions, avail, active):
+    """Flat index (battle * n + agent) of the first illegal action in an active battle, or -1."""
+    return _first_invalid(actions, avail, active)
+
+
+@kernel
+def check_decode_batch(actions, avail, active, replace, replaced, x, y, kind, target, cmd_x, cmd_y, own_lo, enemy_lo,
+                       healer, move_amount):
+    """The way down of a core step for one side: check in-range ``actions`` (B, n) against ``avail``, then write
+    their engine commands for active battles.
+
+    An unavailable action in an active battle is, with ``replace``, replaced in ``actions`` by the agent's first
+    available one (no-op for a dead agent, stop for a living one) and counted in ``replaced`` (B,); without it,
+    nothing is written and the flat index (battle * n + agent) of the first one is returned. Returns -1 once the
+    commands are written.
+    """
     n_battles, n = actions.shape
+    if not replace:
+        bad = _first_invalid(actions, avail, active)
+        if bad >= 0:
+            return bad
     for b in range(n_battles):
+        replaced[b] = 0
         if not active[b]:
             continue
         for i in range(n):
             u = own_lo + i
             a = actions[b, i]
+            if not avail[b, i, a]:
+                a = 0
+                while not avail[b, i, a]:
+                    a += 1
+                actions[b, i] = a
+                replaced[b] += 1
             k, t = CMD_NOOP, NO_UNIT
             px, py = x[b, u], y[b, u]
             if a == 1:
@@ -487,3 +555,4 @@ def decode_actions_batch(actions, active, x, y, own_lo, enemy_lo, healer, move_a
             target[b, u] = t
             cmd_x[b, u] = px
             cmd_y[b, u] = py
+    return -1
