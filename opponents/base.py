@@ -1,7 +1,8 @@
 """The two base opponents, named so they cannot be confused.
 
 - ``smac`` (:class:`SmacScript`): SMAC's one-player maps. On each battle's first step every unit gets the map's
-  enemy order once (smac_interface §9): attack-move to the learner's spawn on most maps, to a random point between
+  enemy order once (docs/smac_interface.md §9): attack-move to the learner's spawn on most maps, to a random point
+  between
   the two marines on 2m_vs_1z, an attack on the nearest colossus on 2c_vs_64zg, nothing on 2s_vs_1sc. Afterwards
   the script sends no command: SC2's automatic targeting drives the units, and once the attack-move arrives they
   stand idle at the point (the "stuck at the destination" weakness the SMAC-HARD paper describes, section 3.1).

@@ -1,4 +1,5 @@
-"""SMAC's reward for hand-computed kill sequences, per side (smac_interface §5, smac_hard_reference §6-§7)."""
+"""SMAC's reward for hand-computed kill sequences, per side (docs/smac_interface.md §5,
+docs/smac_hard_reference.md §6-§7)."""
 
 from __future__ import annotations
 

@@ -2,7 +2,8 @@
 
 SC2's ``CreateUnitsWithDefaultFacing`` puts the first unit of a group exactly on the spawn point and each further one
 at the nearest free placement around it. The exact placements come from the game's placement search and are stored
-nowhere (smac_interface §9), so we pack each group tightly: candidates on rings around the point, nearest first,
+nowhere (docs/smac_interface.md §9), so we pack each group tightly: candidates on rings around the point, nearest
+first,
 taking the first one whose circle overlaps no placed unit of the same plane and whose centre is on a walkable cell.
 The layout is the same every episode.
 

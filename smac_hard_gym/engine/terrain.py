@@ -170,7 +170,7 @@ def _tables(walk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def cliff_height(cliff: np.ndarray) -> np.ndarray:
-    """World height z per cell: cliff level 1 is z=8 and each level adds 2 (smac_interface §9)."""
+    """World height z per cell: cliff level 1 is z=8 and each level adds 2 (docs/smac_interface.md §9)."""
     return 6.0 + 2.0 * cliff
 
 

@@ -283,13 +283,14 @@ class TwoPlayerCore:
         self._error = None
 
     def step(self, red_actions: Any, blue_actions: Any = None, *, replace_invalid: bool = False,
-             hint: str = "") -> StepResult:
+             hint: str = "", checked: bool = False) -> StepResult:
         """Advance every battle that is not done by one env step (``step_mul`` game loops).
 
         Actions are checked (:func:`~smac_hard_gym.smac.actions.validate_actions`, then availability in the battles
         that step). An unavailable red action raises :class:`~smac_hard_gym.smac.actions.InvalidActionError`
         (message ending with ``hint``), or with ``replace_invalid`` is replaced by the agent's first available one
-        and counted in ``result.replaced``. A rejected step changes nothing.
+        and counted in ``result.replaced``. A rejected step changes nothing. ``checked``: red's actions are already
+        a fresh int64 array ``(B, n_red)`` of in-range values (an env layer validated them): not validated again.
         """
         self._check_open()
         if self._error is not None:
@@ -306,7 +307,7 @@ class TwoPlayerCore:
         commands.clear()
         replaced = np.zeros(size, dtype=np.int64) if replace_invalid else self._no_replaced
         if self.red_script is None:
-            red = self._decode(RED, red_actions, active, replace_invalid, replaced, hint)
+            red = self._decode(RED, red_actions, active, replace_invalid, replaced, hint, checked)
         elif red_actions is not None:
             raise ValueError("red is played by red_script: step() takes no red actions (pass None)")
         else:
@@ -314,7 +315,7 @@ class TwoPlayerCore:
             self._act(self.red_script, RED, commands, active)
         blue = self._no_actions
         if self.mode == "self-play":
-            blue = self._decode(BLUE, blue_actions, active, False, np.zeros(size, dtype=np.int64), "")
+            blue = self._decode(BLUE, blue_actions, active, False, np.zeros(size, dtype=np.int64), "", False)
         if hook is not None:
             clock = self._lap(hook, "actions", clock)
         if self.opponent is not None:
@@ -362,10 +363,11 @@ class TwoPlayerCore:
             raise
 
     def _decode(self, side: int, actions: Any, active: np.ndarray, replace: bool, replaced: np.ndarray,
-                hint: str) -> np.ndarray:
+                hint: str, checked: bool) -> np.ndarray:
         """One side's actions, validated, checked against its masks and written as engine commands (one kernel)."""
         feats = self.features[side]
-        acts = validate_actions(actions, (self.batch_size, feats.n_agents), feats.n_actions, SIDE_NAMES[side])
+        acts = actions if checked else validate_actions(actions, (self.batch_size, feats.n_agents), feats.n_actions,
+                                                        SIDE_NAMES[side])
         avail = self.avail_actions(side)
         state, cmd = self.backend.state, self.commands
         bad = check_decode_batch(acts, avail, active, replace, replaced, state.x, state.y, cmd.kind, cmd.target,

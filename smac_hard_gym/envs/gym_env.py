@@ -85,7 +85,7 @@ class SMACHardEnv(gym.Env):
 
     Observation Space
         ``obs_mode="joint"`` (default): Box float32 ``(n_agents * obs_size,)``, every agent's SMAC observation
-        (``smac_interface.md`` §3), agent-major, in [-1, 1]. ``"joint+state"``: the same followed by SMAC's global
+        (``docs/smac_interface.md`` §3), agent-major, in [-1, 1]. ``"joint+state"``: the same followed by SMAC's global
         state (§4). ``"dict"``: ``{"obs": (n_agents, obs_size), "state": (state_size,), "action_mask":
         (n_agents, n_actions) int8}``.
 
@@ -169,7 +169,8 @@ class SMACHardEnv(gym.Env):
         if self._needs_reset:
             raise ResetNeededError("call reset() before step(): the episode is over (or never started)")
         acts = validate_actions(action, (self.n_agents,), self.n_actions, "red")
-        result = self.core.step(acts[None], replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT)
+        result = self.core.step(acts[None], replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT,
+                                checked=True)
         step = self.view.translate(result)
         terminated, truncated = bool(step.terminated[0]), bool(step.truncated[0])
         self._needs_reset = terminated or truncated

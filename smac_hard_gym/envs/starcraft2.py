@@ -212,7 +212,8 @@ class StarCraft2Env:
             blue = validate_actions(actions[1], (self.n_enemies,), self.n_actions_list[BLUE], "blue")
             result = self._core.step(red[None], blue[None])
         else:
-            result = self._core.step(validate_actions(actions, (self.n_agents,), self.n_actions, "red")[None])
+            result = self._core.step(validate_actions(actions, (self.n_agents,), self.n_actions, "red")[None],
+                                     checked=True)
         self._cache.clear()
         self._episode_steps += 1
         self._total_steps += 1

@@ -1,6 +1,6 @@
 """SMAC's discrete actions: which are available, and how a choice becomes an engine command.
 
-Per agent, ``n_actions = 6 + n_enemies`` (``shared/reference/smac_interface.md`` §2):
+Per agent, ``n_actions = 6 + n_enemies`` (``docs/smac_interface.md`` §2):
 
 ====  ====================================  ===========================================================
 id    meaning                               available when
@@ -71,7 +71,7 @@ def validate_actions(actions: Any, shape: tuple[int, ...], n_actions: int, who: 
         return np.array(actions, dtype=np.int64)  # pymarl's usual call, a list of legal Python ints: no detour
     if (type(actions) is np.ndarray and actions.dtype == np.int64 and actions.shape == tuple(shape)
             and actions.size and actions.min() >= 0 and actions.max() < n_actions):
-        return actions.copy()  # an env's already-checked array, checked again by the core: two reductions
+        return actions.copy()  # a policy's int64 array (the vector envs' usual call): two reductions
     if isinstance(actions, (str, bytes, dict, set)) or actions is None:
         raise TypeError(f"{who} actions must be a sequence or array of ints of shape {shape}, got {actions!r}")
     if isinstance(actions, np.ndarray) and actions.dtype.kind in "iuf":

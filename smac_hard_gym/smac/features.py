@@ -3,7 +3,7 @@
 Everything here is a function of a :class:`~smac_hard_gym.engine.state.BattleState` (arrays ``(B, U)`` over B
 battles) and a side: :class:`SideFeatures` holds one side's constants (which slots are "own" and "enemy", health
 and shield normalisers, unit-type one-hots) and the feature-name lists that define every offset and size. The red
-side's view is SMAC's (``shared/reference/smac_interface.md`` §3-§6); the blue side gets the same encoding from its
+side's view is SMAC's (``docs/smac_interface.md`` §3-§6); the blue side gets the same encoding from its
 own side (SMAC-HARD's self-play layout). The arithmetic runs in :mod:`smac_hard_gym.smac.kernels`, one compiled
 pass per feature block over the batch; this module holds the constants, sizes and names the kernels are given.
 
@@ -65,7 +65,7 @@ SIDE_NAMES = ("red", "blue")
 _SURROUNDING = ((0, 2), (0, -2), (2, 0), (-2, 0), (1, 1), (-1, -1), (1, -1), (-1, 1))
 _SURROUNDING_NAMES = ("n2", "s2", "e2", "w2", "ne", "sw", "se", "nw")
 
-# SMAC's one-hot index of the opponent's standard units per map_type (smac_interface §3).
+# SMAC's one-hot index of the opponent's standard units per map_type (docs/smac_interface.md §3).
 _STANDARD_TYPE_ORDER = {
     "MMM": ("marauder", "marine", "medivac"),
     "stalkers_and_zealots": ("zealot", "stalker"),
