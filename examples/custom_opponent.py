@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from smac_hard_gym.envs.duel import run_duel
 from smac_hard_gym.opponents import BatchScript, Frame, Memory, Orders
-from smac_hard_gym.opponents.duel import run_duel
 from smac_hard_gym.opponents.helpers import argmin_masked, away, lowest
 
 

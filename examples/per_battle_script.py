@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from smac_hard_gym.envs.duel import run_duel
 from smac_hard_gym.opponents import BattleView, PerBattleScript
-from smac_hard_gym.opponents.duel import run_duel
 
 
 class HitAndRun(PerBattleScript):

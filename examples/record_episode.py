@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from smac_hard_gym.engine.state import CMD_ATTACK
+from smac_hard_gym.envs.duel import record_engine_episode
 from smac_hard_gym.opponents import Script, SideView
-from smac_hard_gym.render import BattleRenderer, record_engine_episode, write_video
+from smac_hard_gym.render import BattleRenderer, write_video
 
 
 class NearestTarget(Script):

@@ -3,7 +3,8 @@ use, each paired with the opponents it is known to beat or to lose to.
 
 They are the engine's and the opponents' acceptance tests: the outcome of each pairing is known from the game, not
 from our code, so a bound that fails points at a rule of the engine or a script that does not behave as in
-StarCraft II. ``smac-hard-gym solutions`` prints the table; ``tests/test_known_solutions.py`` asserts it.
+StarCraft II. ``smac_hard_gym.envs.solutions.check_claim`` plays a claim out (with the duel runner, above this
+package); ``smac-hard-gym solutions`` prints the table; ``tests/test_known_solutions.py`` asserts it.
 
 - 2m_vs_1z, **alternating aggro** (SMAC's classic solution): the marine the zealot comes close to steps back, the
   other shoots. SC2's zealot turns on whoever is shooting it, so it is pulled back and forth and never lands a blow
@@ -41,7 +42,7 @@ from smac_hard_gym.opponents.helpers import (
 )
 
 __all__ = ["AlternatingAggro", "StalkerKite", "HoldChoke", "OpenFight", "HideThenPickOff", "Claim", "Verdict",
-           "CLAIMS", "CONTROLLERS", "check_claim", "claims_for_map", "make_controller"]
+           "CLAIMS", "CONTROLLERS", "claims_for_map", "make_controller"]
 
 # A weapon counts as ready when its cooldown ends within half an env step (4 of 8 game loops): ordering the attack
 # then costs at most half a step of standing, stepping back would delay the shot by up to a whole step.
@@ -311,18 +312,6 @@ class Verdict:
         return self.claim.holds(self.rate, self.other_rate)
 
 
-def check_claim(claim: Claim, episodes: int = 32, seed: int = 0) -> Verdict:
-    """Play ``episodes`` seeded episodes of the claim (and of its comparison) on the embedded engine."""
-    from smac_hard_gym.opponents.duel import run_duel  # the duel runner imports the script library
-
-    def rate(red: str) -> float:
-        return run_duel(claim.map_name, make_controller(red), claim.blue, episodes=episodes, seed=seed,
-                        guard=False).red_win_rate
-
-    other = rate(claim.better_than) if claim.better_than is not None else None
-    return Verdict(claim, rate(claim.red), other, episodes)
-
-
 def make_controller(name: str) -> BatchScript:
     """A fresh red controller by name (``CONTROLLERS`` lists them)."""
     if name not in _FACTORIES:
@@ -368,3 +357,10 @@ def claims_for_map(map_name: str | None = None) -> tuple[Claim, ...]:
         raise ValueError(f"no known solutions on map {map_name!r}; maps with some: "
                          f"{sorted({c.map_name for c in CLAIMS})}")
     return claims
+
+
+def __getattr__(name: str):
+    if name == "check_claim":  # it runs duels, which play on the core above this package
+        raise ImportError("check_claim moved to smac_hard_gym.envs.solutions: "
+                          "from smac_hard_gym.envs.solutions import check_claim")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -12,8 +12,8 @@ import pytest
 from test_opponents_library import Battle
 
 from smac_hard_gym.engine.state import CMD_ATTACK_MOVE, CMD_NOOP, ORDER_ATTACK_MOVE, ORDER_IDLE
+from smac_hard_gym.envs.duel import run_duel
 from smac_hard_gym.opponents import make_opponent, pool_for_map
-from smac_hard_gym.opponents.duel import run_duel
 
 
 def test_smac_attack_moves_to_the_learner_spawn_once_then_lets_automatic_targeting_retarget():

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import pytest
 
-from smac_hard_gym.opponents.known_solutions import CLAIMS, check_claim, claims_for_map, make_controller
+from smac_hard_gym.envs.solutions import check_claim
+from smac_hard_gym.opponents.known_solutions import CLAIMS, claims_for_map, make_controller
 
 EPISODES = 32
 

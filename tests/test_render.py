@@ -18,13 +18,13 @@ import pytest
 
 from smac_hard_gym.engine import CMD_ATTACK_MOVE, NO_UNIT, BattleEngine, Commands
 from smac_hard_gym.engine.state import BLUE, RED
+from smac_hard_gym.envs.duel import record_engine_episode
 from smac_hard_gym.render import (
     BattleRenderer,
     EnvRenderer,
     EpisodeError,
     EpisodeRecorder,
     load_episode,
-    record_engine_episode,
     write_video,
 )
 from smac_hard_gym.render import renderer as rmod

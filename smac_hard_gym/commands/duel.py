@@ -1,4 +1,5 @@
-"""``smac-hard-gym duel``: two scripts fight on the embedded engine; prints win and draw rates."""
+"""``smac-hard-gym duel``: two scripts fight on the two-player core (``smac_hard_gym.envs.duel``); prints win and draw
+rates."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "units, so it must give orders")
     parser.add_argument("--blue", required=True, help="script for the blue (opponent's) side, same forms")
     parser.add_argument("--episodes", type=int, default=20, help="episodes to play (default 20)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the scripts' per-episode generators")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="episode e is a battle seeded seed + e (as SMACHardEnv.reset(seed=seed + e))")
     parser.add_argument("--batch", type=int, default=None,
                         help="battles run at once (default: all episodes, at most 64)")
     parser.add_argument("--red-probs", type=float, nargs="+", default=None, help="mixture weights for --red")
@@ -31,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
 
+    from smac_hard_gym.envs.duel import run_duel
     from smac_hard_gym.opponents import opponent_from_text
-    from smac_hard_gym.opponents.duel import run_duel
 
     batch = args.batch if args.batch is not None else min(args.episodes, 64)
     print(f"duel on {args.map}: red={args.red} blue={args.blue} episodes={args.episodes} seed={args.seed} "
@@ -61,9 +63,9 @@ def _record(args: argparse.Namespace) -> None:
     """Replay ``--record-episodes`` episodes of the same pairing one by one and save each as a recording."""
     from pathlib import Path
 
+    from smac_hard_gym.envs.duel import record_engine_episode
     from smac_hard_gym.maps import load_map
     from smac_hard_gym.opponents import make_opponent
-    from smac_hard_gym.render.recorder import record_engine_episode
 
     if args.record_episodes < 1:
         raise SystemExit(f"--record-episodes must be >= 1, got {args.record_episodes}")

@@ -18,7 +18,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
 
-    from smac_hard_gym.opponents.known_solutions import check_claim, claims_for_map
+    from smac_hard_gym.envs.solutions import check_claim
+    from smac_hard_gym.opponents.known_solutions import claims_for_map
 
     if args.episodes < 1:
         raise ValueError(f"--episodes must be a positive int, got {args.episodes}")

@@ -7,7 +7,8 @@ smac-hard-gym[render]``).
 - :class:`BattleRenderer`: frames (H, W, 3) uint8 of one battle, or a grid of battles (``render_grid``).
 - :class:`EnvRenderer`: what an env holds for ``render_mode="rgb_array"`` or ``"human"``.
 - :class:`EpisodeRecorder` / :func:`load_episode`: capture an episode step by step into a compressed ``.npz`` file
-  and read it back; :func:`record_engine_episode` plays two scripts against each other and records the battle.
+  and read it back (``smac_hard_gym.envs.duel.record_engine_episode`` plays two scripts against each other on the
+  two-player core and records the battle).
 - :func:`write_video`: frames to ``.gif`` (Pillow) or ``.mp4`` (imageio-ffmpeg).
 """
 
@@ -19,7 +20,6 @@ from smac_hard_gym.render.recorder import (
     EpisodeError,
     EpisodeRecorder,
     load_episode,
-    record_engine_episode,
 )
 from smac_hard_gym.render.renderer import BattleRenderer, tile_frames
 from smac_hard_gym.render.video import VIDEO_FORMATS, write_video
@@ -27,6 +27,13 @@ from smac_hard_gym.render.viewer import HumanViewer
 
 __all__ = [
     "BattleRenderer", "tile_frames", "EnvRenderer", "RENDER_MODES", "check_render_mode", "HumanViewer",
-    "EpisodeRecorder", "Episode", "EpisodeError", "load_episode", "record_engine_episode", "write_video",
+    "EpisodeRecorder", "Episode", "EpisodeError", "load_episode", "write_video",
     "VIDEO_FORMATS",
 ]
+
+
+def __getattr__(name: str):
+    if name == "record_engine_episode":  # moved above the core: render sits below the envs and imports none of them
+        raise ImportError("record_engine_episode moved to smac_hard_gym.envs.duel (it plays on the two-player core): "
+                          "from smac_hard_gym.envs.duel import record_engine_episode")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

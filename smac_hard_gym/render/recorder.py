@@ -32,7 +32,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from smac_hard_gym.engine.state import BLUE, RED, Commands
-from smac_hard_gym.units import UNITS, WEAPON_HEAL, unit_index
+from smac_hard_gym.units import UNITS, unit_index
 
 FORMAT = "smac-hard-gym-episode"
 FORMAT_VERSION = 1
@@ -40,7 +40,6 @@ UNIT_FIELDS = {
     "x": np.float32, "y": np.float32, "health": np.float32, "shield": np.float32, "energy": np.float32,
     "alive": np.bool_, "burst": np.bool_, "fired_at": np.int16,
 }
-_HEALER = np.array([u.weapon == WEAPON_HEAL for u in UNITS])  # medivacs: a side left with only these is out
 _COMMAND_FIELDS = {"kind": np.int8, "target": np.int16, "x": np.float32, "y": np.float32}
 
 
@@ -348,62 +347,8 @@ def load_episode(path: str | os.PathLike) -> Episode:
     return _episode_from_arrays(arrays, str(path))
 
 
-def record_engine_episode(source: Any, red: Any = None, blue: Any = "base", *, battle: int = 0, seed: int = 0,
-                          max_steps: int | None = None, recorder: EpisodeRecorder | None = None) -> EpisodeRecorder:
-    """Play one episode of two scripts against each other and record battle ``battle``.
-
-    ``source`` is a backend (all its battles are reset and stepped together) or a map (a native backend of one
-    battle is built). ``red`` and ``blue`` are :class:`~smac_hard_gym.opponents.Script` objects or built-in script
-    names; ``red=None`` leaves the learner's passive units idle. Scripts draw from per-battle generators seeded from
-    ``seed``. The episode ends when one side has no fighting unit left (medivacs do not count, as in SMAC) or after
-    ``max_steps`` (default: the map's episode limit). The recorder's metadata gets the scripts' names, the seed and
-    the ``winner`` (red, blue, draw, or none at the limit).
-    """
-    from smac_hard_gym.backend import make_backend
-    from smac_hard_gym.engine.state import Commands as CommandBuffer
-    from smac_hard_gym.opponents import make_opponent
-    from smac_hard_gym.opponents.api import SideView
-
-    backend = make_backend("native", source) if not hasattr(source, "step") else source
-    spec, n_red, n_units = backend.spec, backend.n_red, backend.n_red + backend.n_blue
-    n_battles = backend.batch_size
-    if not isinstance(battle, (int, np.integer)) or not 0 <= battle < n_battles:
-        raise ValueError(f"battle must be an int in 0..{n_battles - 1}, got {battle!r}")
-    limit = spec.episode_limit if max_steps is None else int(max_steps)
-    if limit < 1:
-        raise ValueError(f"max_steps must be >= 1, got {max_steps!r}")
-    players = [(make_opponent(spec, script), side) for script, side in ((red, RED), (blue, BLUE))
-               if script is not None]
-    backend.reset()
-    episode_step = np.zeros(n_battles, dtype=np.int64)
-    slots = {RED: slice(0, n_red), BLUE: slice(n_red, n_units)}
-    seeds = np.random.SeedSequence(seed).spawn(2 * n_battles)
-    everyone = np.arange(n_battles)
-    views = []
-    for script, side in players:
-        view = SideView(backend.state, spec, side, slots[side], slots[1 - side], episode_step)
-        script.reset(view, everyone, [np.random.default_rng(s) for s in seeds[side * n_battles:][:n_battles]])
-        views.append(view)
-    blue_name = next((s.name_of(battle) for s, side in players if side == BLUE), "idle")
-    red_name = next((s.name_of(battle) for s, side in players if side == RED), "idle")
-    rec = recorder if recorder is not None else EpisodeRecorder(spec, step_mul=backend.step_mul)
-    rec.metadata.update({"red": red_name, "blue": blue_name, "seed": seed, "battle": int(battle)})
-    rec.capture(backend.state, battle, step=0, opponent=blue_name)
-    commands = CommandBuffer.empty(n_battles, n_units)
-    active = np.ones(n_battles, dtype=bool)
-    for t in range(1, limit + 1):
-        commands.clear()
-        for (script, _), view in zip(players, views, strict=True):
-            script.act(view, commands, active)
-        backend.step(commands, active)
-        episode_step[active] += 1
-        rec.capture(backend.state, battle, step=t, actions=commands, opponent=blue_name)
-        fighting = backend.state.alive & ~_HEALER[backend.state.utype]
-        active &= fighting[:, slots[RED]].any(axis=1) & fighting[:, slots[BLUE]].any(axis=1)
-        if not active[battle]:
-            break
-    fighting = backend.state.alive & ~_HEALER[backend.state.utype]
-    red_left, blue_left = bool(fighting[battle, slots[RED]].any()), bool(fighting[battle, slots[BLUE]].any())
-    winners = {(True, False): "red", (False, True): "blue", (False, False): "draw", (True, True): "none"}
-    rec.metadata["winner"] = winners[(red_left, blue_left)]
-    return rec
+def __getattr__(name: str) -> Any:
+    if name == "record_engine_episode":
+        raise ImportError("record_engine_episode moved to smac_hard_gym.envs.duel (it plays on the two-player core): "
+                          "from smac_hard_gym.envs.duel import record_engine_episode")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
