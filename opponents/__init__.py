@@ -12,6 +12,8 @@
 - a built-in script name (``scripts_for_map(map)`` lists them, ``smac-hard-gym scripts --map M`` prints them);
 - a user script reference: ``path/to/file.py:ClassName``, ``path/to/file.py`` (one Script subclass in it) or
   ``package.module:Name``;
+- a trained policy: a saved MaskablePPO model (``path/to/model.zip``), an SB3 model, a torch module or a function
+  of observations and masks (:mod:`smac_hard_gym.opponents.policy`);
 - a :class:`Script` object, or a list of any of these (a mixture).
 
 ``opponent_probs`` gives one probability per script of the mixture (equal by default). User scripts run inside a
@@ -32,6 +34,7 @@ from smac_hard_gym.opponents.api import Script, ScriptError, SideView
 from smac_hard_gym.opponents.base import BaseScript, SmacScript
 from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT, GuardedScript
 from smac_hard_gym.opponents.helpers import BatchScript, Frame, Memory, Orders
+from smac_hard_gym.opponents.league import League
 from smac_hard_gym.opponents.library import (
     MIXTURE_NAMES,
     POOLS,
@@ -44,13 +47,14 @@ from smac_hard_gym.opponents.library import (
 from smac_hard_gym.opponents.loader import is_reference, load_script
 from smac_hard_gym.opponents.mixture import Mixture, check_probs
 from smac_hard_gym.opponents.per_battle import BattleView, PerBattleScript
+from smac_hard_gym.opponents.policy import PolicyScript, is_policy_file
 from smac_hard_gym.opponents.sandbox import ProcessIsolatedScript
 
 __all__ = [
     "Script", "SideView", "ScriptError", "BaseScript", "SmacScript", "BatchScript", "Frame", "Memory", "Orders",
     "PerBattleScript", "BattleView", "Mixture", "GuardedScript", "ProcessIsolatedScript", "ScriptInfo", "SCRIPTS",
     "POOLS", "ISOLATION_MODES", "make_opponent", "opponent_from_text", "make_script", "scripts_for_map",
-    "pool_for_map", "load_script",
+    "pool_for_map", "load_script", "PolicyScript", "League",
 ]
 
 OpponentSpec = str | Script | Sequence[str | Script]
@@ -108,15 +112,25 @@ def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = N
                 raise ValueError(f"script {entry!r} does not play map {spec.name!r} (it plays {list(info.maps)}); "
                                  f"scripts for {spec.name}: {sorted(scripts_for_map(spec))}")
             script = info.factory()
+        elif is_policy_file(entry):
+            script = PolicyScript.load(entry)
         elif is_reference(entry):
             script = load_script(entry)
         else:
             raise ValueError(f"unknown opponent {entry!r} for map {spec.name!r}; allowed: "
                              f"{', '.join(MIXTURE_NAMES)}, {', '.join(sorted(scripts_for_map(spec)))}, or a user "
                              "script 'path/to/file.py[:ClassName]' / 'module:Name'")
+    elif callable(entry) or hasattr(entry, "predict"):
+        name = getattr(entry, "name", None) or getattr(entry, "__name__", None) or type(entry).__name__
+        script = PolicyScript(entry, name=str(name))
     else:
-        raise TypeError(f"an opponent is a script name, a script reference or a Script object, got {entry!r}")
-    wrap = (not is_builtin(script) and isolation != "none") if guard is None else guard
+        raise TypeError(f"an opponent is a script name, a script reference, a saved model (.zip), a Script or a "
+                        f"policy (a function of observations and masks, an SB3 model, a torch module), got {entry!r}")
+    # A PolicyScript is library code (it writes commands by the SMAC decoding); the user's policy inside it only
+    # ever sees fresh feature arrays, never the state, so it runs unguarded unless asked. A League holds scripts
+    # made here and snapshots of the learner.
+    trusted = is_builtin(script) or type(script) in (PolicyScript, League)
+    wrap = (not trusted and isolation != "none") if guard is None else guard
     if wrap and not isinstance(script, GuardedScript):
         script = GuardedScript(script, time_limit=time_limit)
     return script
@@ -155,7 +169,7 @@ def make_opponent(spec: MapSpec | str, opponent: OpponentSpec = "base",
             raise ValueError(f"map {spec.name!r} has an empty {opponent!r} pool")
         probs = check_probs(opponent_probs, names, where)
         return Mixture([make_script(spec, n, guard, time_limit, isolation) for n in names], probs, name=opponent)
-    if isinstance(opponent, (str, Script)):
+    if isinstance(opponent, (str, Script)) or callable(opponent) or hasattr(opponent, "predict"):
         entries: list[str | Script] = [opponent]
     elif isinstance(opponent, Sequence) and not isinstance(opponent, (bytes, bytearray)):
         entries = list(opponent)

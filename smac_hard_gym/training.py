@@ -61,6 +61,9 @@ class TrainConfig:
     env_threads: int = 1  # numba threads for the engine batch
     progress: bool = True
     tensorboard: str = ""  # a directory for SB3's TensorBoard logs ("" for none; needs the tensorboard package)
+    league: bool = False  # self-play league: snapshots of the learner join the opponent's scripts (opponents.league)
+    league_every: int = 0  # env steps between snapshots; 0: a fifth of the run
+    league_weighting: str = "uniform"  # how members are drawn: "uniform" or "prioritized" (by the learner's losses)
 
     def __post_init__(self) -> None:
         for name in ("timesteps", "num_envs", "eval_episodes", "eval_envs", "n_steps", "batch_size", "n_epochs",
@@ -72,8 +75,19 @@ class TrainConfig:
             raise ValueError(f"eval_every must be >= 0 (0: a tenth of the run), got {self.eval_every!r}")
         if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
             raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
+        if self.league_every < 0:
+            raise ValueError(f"league_every must be >= 0 (0: a fifth of the run), got {self.league_every!r}")
+        from smac_hard_gym.opponents.league import WEIGHTINGS
+
+        if self.league_weighting not in WEIGHTINGS:
+            raise ValueError(f"league_weighting must be one of {WEIGHTINGS}, got {self.league_weighting!r}")
+        if self.league and self.obs_mode == "dict":
+            raise ValueError("league snapshots play from the joint view: use obs_mode 'joint' or 'joint+state'")
         if not self.out:
-            self.out = str(Path("runs") / f"{self.map_name}-{self.opponent.replace(',', '+')}-s{self.seed}")
+            label = "+".join(Path(part).stem if part.endswith(".zip") else part.replace(":", "_").replace("/", "_")
+                             for part in self.opponent.split(","))
+            league = "-league" if self.league else ""
+            self.out = str(Path("runs") / f"{self.map_name}-{label}{league}-s{self.seed}")
         if self.tensorboard:
             try:
                 import tensorboard  # noqa: F401  (SB3 writes through it)
@@ -84,6 +98,10 @@ class TrainConfig:
     @property
     def eval_interval(self) -> int:
         return self.eval_every or max(self.timesteps // 10, self.num_envs * self.n_steps)
+
+    @property
+    def league_interval(self) -> int:
+        return self.league_every or max(self.timesteps // 5, self.num_envs * self.n_steps)
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of the envs this run trains and evaluates on."""
@@ -289,6 +307,69 @@ def _callback_class() -> type:
     return EvalAndProgress
 
 
+def _league_callback_class() -> type:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class LeagueSnapshots(BaseCallback):
+        """Every ``interval`` steps: the learner's win rates against the league's members so far (from the training
+        env's statistics) re-weigh the league, and a frozen copy of the learner joins it."""
+
+        def __init__(self, league: Any, core: Any, interval: int) -> None:
+            super().__init__()
+            self.league, self.core, self.interval = league, core, interval
+            self.next_snapshot = interval
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next_snapshot:
+                self.next_snapshot += self.interval
+                self.league.update(league_win_rates(self.core))
+                self.league.add(snapshot(self.model, f"snapshot-{self.num_timesteps}"))
+            return True
+
+    return LeagueSnapshots
+
+
+def snapshot(model: Any, name: str) -> Any:
+    """A frozen copy of ``model``'s policy as an opponent (:class:`~smac_hard_gym.opponents.policy.PolicyScript`)."""
+    import copy
+
+    from smac_hard_gym.opponents.policy import PolicyScript
+
+    policy = copy.deepcopy(model.policy)
+    policy.set_training_mode(False)
+    return PolicyScript(policy, name=name)
+
+
+def league_win_rates(core: Any) -> dict[str, float]:
+    """The learner's win rate against each opponent it has finished games with, from a core's statistics."""
+    return {name: row["win_rate"] for name, row in core.stats()["opponents"].items() if row["games"]}
+
+
+def _evaluate_league(model: Any, league: Any, config: TrainConfig, core: Any) -> dict[str, Any]:
+    """Win rate of ``model`` against each league member (``config.eval_episodes`` episodes each), with the
+    member's drawing probability and its training games."""
+    from smac_hard_gym.envs.vector import NativeVectorEnv
+    from smac_hard_gym.opponents.policy import PolicyScript
+
+    kwargs = config.env_kwargs()
+    map_name = kwargs.pop("map_name")
+    played = core.stats()["opponents"]
+    members = {}
+    for member, prob in zip(league.scripts, league.probs, strict=True):
+        # A fresh script per evaluation env: members keep per-battle memory sized to the training batch.
+        opponent = PolicyScript(member.policy, member.name, member.options) if isinstance(member, PolicyScript) \
+            else member.name
+        venv = NativeVectorEnv(map_name, min(config.eval_envs, config.eval_episodes), autoreset_mode="SameStep",
+                               opponent=opponent, **kwargs)
+        try:
+            result = evaluate(model, venv, config.eval_episodes, seed=config.seed + 2_000_003)
+        finally:
+            venv.close()
+        members[member.name] = {"win_rate": result.win_rate, "prob": float(prob),
+                                "train_games": int(played.get(member.name, {}).get("games", 0))}
+    return {"weighting": league.weighting, "members": members}
+
+
 def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Train MaskablePPO as ``config`` says; returns the summary (also written to ``summary.json``)."""
     import numba
@@ -309,8 +390,16 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
     opponent = opponent_from_text(config.opponent)
     kwargs = config.env_kwargs()
     map_name = kwargs.pop("map_name")
-    timed = _timed_vec_env_class()(SB3VecEnv(NativeVectorEnv(
-        map_name, config.num_envs, autoreset_mode="SameStep", opponent=opponent, **kwargs)))
+    league = None
+    if config.league:
+        from smac_hard_gym.opponents import Mixture, make_opponent
+        from smac_hard_gym.opponents.league import League
+
+        start = make_opponent(map_name, opponent)
+        league = League(start.scripts if isinstance(start, Mixture) else [start], weighting=config.league_weighting)
+    native = NativeVectorEnv(map_name, config.num_envs, autoreset_mode="SameStep",
+                             opponent=opponent if league is None else league, **kwargs)
+    timed = _timed_vec_env_class()(SB3VecEnv(native))
     venv = VecMonitor(timed)
     eval_env = NativeVectorEnv(map_name, min(config.eval_envs, config.eval_episodes), autoreset_mode="SameStep",
                                opponent=opponent, **kwargs)
@@ -339,7 +428,11 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
         _write_curve(out / "curve.csv", rows)
         return row
 
-    callback = _callback_class()(evaluate_now, config.eval_interval, config.timesteps, config.progress)
+    callback: Any = _callback_class()(evaluate_now, config.eval_interval, config.timesteps, config.progress)
+    if league is not None:
+        from stable_baselines3.common.callbacks import CallbackList
+
+        callback = CallbackList([callback, _league_callback_class()(league, native.core, config.league_interval)])
     evaluate_now(0)
     clock["start"] = time.perf_counter()
     clock["eval"] = 0.0
@@ -348,7 +441,8 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
     try:
         model.learn(config.timesteps, callback=callback)
         if rows[-1]["timesteps"] != model.num_timesteps:
-            evaluate_now(model.num_timesteps, callback.take_train_results())
+            evaluate_now(model.num_timesteps, (callback.callbacks[0] if league is not None else callback)
+                         .take_train_results())
     except KeyboardInterrupt:  # Ctrl-C: keep what was learned, the curve so far and a summary that says so
         interrupted = True
     finally:
@@ -357,6 +451,9 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
     model.save(out / "model.zip")
     plotted = _plot_curve(out / "curve.png", rows, f"MaskablePPO on {config.map_name} vs {config.opponent}")
     summary = _summary(config, rows)
+    if league is not None and not interrupted:
+        league.update(league_win_rates(native.core))
+        summary["league"] = _evaluate_league(model, league, config, native.core)
     summary["interrupted"] = interrupted
     summary["timesteps_trained"] = int(model.num_timesteps)
     summary["files"] = {"model": str(out / "model.zip"), "curve_csv": str(out / "curve.csv"),

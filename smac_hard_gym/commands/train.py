@@ -15,8 +15,9 @@ HELP = "train MaskablePPO on a map against an opponent pool and report the win r
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", default="3m", help="map name (see `smac-hard-gym maps`; default 3m)")
     parser.add_argument("--opponent", default="default",
-                        help="'default' (the map's SMAC-HARD pool), 'blackbox', a script name, or names joined by "
-                             "commas (see `smac-hard-gym scripts --map M`)")
+                        help="'default' (the map's SMAC-HARD pool), 'blackbox', a script name, a saved model "
+                             "(path/to/model.zip, played from its own side's features), or these joined by commas "
+                             "(see `smac-hard-gym scripts --map M`)")
     parser.add_argument("--timesteps", type=int, default=50_000, help="env steps to train (default 50000)")
     parser.add_argument("--num-envs", type=int, default=64, help="battles stepped together (default 64)")
     parser.add_argument("--seed", type=int, default=0)
@@ -36,6 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--torch-threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--env-threads", type=int, default=1, help="engine (numba) threads (default 1)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--league", action="store_true",
+                        help="self-play league: snapshots of the learner join --opponent's scripts as opponents")
+    parser.add_argument("--league-every", type=int, default=0, metavar="STEPS",
+                        help="env steps between league snapshots (default: a fifth of --timesteps)")
+    parser.add_argument("--league-weighting", default="uniform", choices=("uniform", "prioritized"),
+                        help="how league members are drawn: equally, or more often the less the learner beats them")
     parser.add_argument("--tensorboard", default="", metavar="DIR",
                         help="also log to TensorBoard in DIR (needs the tensorboard package)")
 
@@ -59,11 +66,12 @@ def run(args: argparse.Namespace) -> int:
             obs_mode=args.obs_mode, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.epochs,
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, net_arch=net_arch,
             torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
-            tensorboard=args.tensorboard)
+            tensorboard=args.tensorboard, league=args.league, league_every=args.league_every,
+            league_weighting=args.league_weighting)
         from smac_hard_gym.opponents import make_opponent, opponent_from_text
 
         make_opponent(args.map, opponent_from_text(args.opponent))
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, FileNotFoundError, ImportError) as err:
         raise SystemExit(f"smac-hard-gym train: {err}") from None
     print("config:")
     for key, value in asdict(config).items():
@@ -86,6 +94,12 @@ def run(args: argparse.Namespace) -> int:
     if summary["final_train_episodes"]:
         print(f"training episodes won (sampled actions, last {summary['final_train_episodes']} episodes): "
               f"{summary['final_train_win_rate']:.3f}")
+    if "league" in summary:
+        print(f"league ({summary['league']['weighting']} weighting), win rate against each member "
+              f"({summary['eval_episodes']} episodes each):")
+        for name, row in summary["league"]["members"].items():
+            print(f"  vs {name:<22} {row['win_rate']:.3f}   drawn with p={row['prob']:.2f}, "
+                  f"{row['train_games']} training games")
     reached = summary["first_timesteps_at_0.8"]
     print(f"first evaluation at >= 0.8: {reached if reached is not None else 'not reached'}")
     print(f"time inside the env (step + masks): {summary['env_s']:.1f} s of {summary['train_wall_s']:.1f} s "

@@ -1,0 +1,166 @@
+"""Trained policies as opponents: anything that maps a side's SMAC observations and masks to actions plays where a
+script does (alone, in a mixture with scripts, or as a league member).
+
+>>> from smac_hard_gym.opponents.policy import PolicyScript
+>>> stand = PolicyScript(lambda obs, masks: masks.argmax(axis=2), name="first-legal")
+
+A :class:`PolicyScript` encodes its own side's SMAC features (the blue side sees blue's own units first, with the
+same options as the learner's env by default), asks the policy for one action per agent, replaces an unavailable
+action by the agent's first available one, and decodes the actions into engine commands exactly as the learner's
+are. It keeps its own last actions per battle, so observations and states that include last actions are right.
+
+What a policy may be (:func:`as_policy`):
+
+- a function ``f(obs, masks) -> actions``: ``obs`` float32 ``(R, n_agents, obs_size)``, ``masks`` bool
+  ``(R, n_agents, n_actions)``, actions int ``(R, n_agents)``;
+- a stable-baselines3 model or policy with ``predict`` (MaskablePPO, PPO, ...) trained on the joint view of the
+  mirrored map (``gymnasium.make("SMACHard-<map>-v0")``, ``obs_mode`` "joint" or "joint+state": told apart by the
+  size of its observation space); a MaskablePPO gets the masks; ``PolicyScript.load("model.zip")`` loads one;
+- a torch module mapping the joint observation ``(R, n_agents * obs_size)`` to logits ``(R, n_agents * n_actions)``
+  (or ``(R, n_agents, n_actions)``): the masked argmax is played.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smac_hard_gym.engine.state import Commands
+from smac_hard_gym.opponents.api import Script, SideView
+from smac_hard_gym.smac.actions import decode_actions
+from smac_hard_gym.smac.features import SideFeatures, SmacOptions
+
+__all__ = ["PolicyScript", "as_policy", "is_policy_file"]
+
+Policy = Callable[[np.ndarray, np.ndarray, np.ndarray | None], np.ndarray]
+
+
+def is_policy_file(text: Any) -> bool:
+    """Whether ``text`` names a saved stable-baselines3 model (a ``.zip`` path)."""
+    return isinstance(text, (str, Path)) and str(text).endswith(".zip")
+
+
+def _sb3_policy(model: Any) -> Policy:
+    """A stable-baselines3 model or policy as a policy over the joint view."""
+    space = model.observation_space
+    masked = "action_masks" in inspect.signature(model.predict).parameters
+
+    def act(obs: np.ndarray, masks: np.ndarray, state: np.ndarray | None) -> np.ndarray:
+        batch = obs.shape[0]
+        joint = obs.reshape(batch, -1)
+        size = int(np.prod(space.shape))
+        if state is not None and size == joint.shape[1] + state.shape[1]:
+            joint = np.concatenate([joint, state], axis=1)  # trained with obs_mode="joint+state"
+        if joint.shape[1] != size:
+            raise ValueError(f"the model takes observations of {size} values; this side's joint observation has "
+                             f"{joint.shape[1]}: was it trained on the joint view of this map (or its mirror)?")
+        kwargs = {"action_masks": masks.reshape(batch, -1)} if masked else {}
+        actions, _ = model.predict(joint, deterministic=True, **kwargs)
+        return np.asarray(actions).reshape(batch, -1)
+
+    return act
+
+
+def _torch_policy(module: Any) -> Policy:
+    """A torch module from joint observations to logits, played by masked argmax."""
+    import torch
+
+    def act(obs: np.ndarray, masks: np.ndarray, state: np.ndarray | None) -> np.ndarray:
+        with torch.no_grad():
+            logits = module(torch.as_tensor(obs.reshape(obs.shape[0], -1)))
+        logits = np.asarray(logits.detach().cpu().numpy(), dtype=np.float64).reshape(masks.shape)
+        return np.where(masks, logits, -np.inf).argmax(axis=2)
+
+    return act
+
+
+def as_policy(policy: Any) -> Policy:
+    """``policy`` (see the module docstring) as a function ``(obs, masks, state) -> actions``."""
+    if hasattr(policy, "predict") and hasattr(policy, "observation_space"):
+        return _sb3_policy(policy)
+    try:
+        import torch
+
+        if isinstance(policy, torch.nn.Module):
+            return _torch_policy(policy)
+    except ImportError:
+        pass
+    if not callable(policy):
+        raise TypeError(f"a policy is a function (obs, masks) -> actions, a stable-baselines3 model or a torch "
+                        f"module, got {policy!r}")
+
+    def act(obs: np.ndarray, masks: np.ndarray, state: np.ndarray | None) -> np.ndarray:
+        return policy(obs, masks)
+
+    return act
+
+
+class PolicyScript(Script):
+    """A trained policy (or any function of observations and masks) playing one side; see the module docstring.
+
+    ``options``: the SMAC options the policy was trained with (default: SMAC's defaults, what the envs use unless
+    told otherwise). ``name`` names it in infos and statistics.
+    """
+
+    description = "a trained policy: SMAC observations and masks of its side in, one action per agent out"
+
+    def __init__(self, policy: Any, name: str = "policy", options: SmacOptions | None = None) -> None:
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"name must be a non-empty string, got {name!r}")
+        self.policy = policy
+        self._act = as_policy(policy)
+        self.name = name
+        self.options = options or SmacOptions()
+        self._features: dict[tuple[str, int], SideFeatures] = {}
+        self.last_action = np.zeros((0, 0), dtype=np.int64)
+
+    @classmethod
+    def load(cls, path: str | Path, name: str | None = None, options: SmacOptions | None = None) -> PolicyScript:
+        """A saved MaskablePPO model (``model.zip``; needs the ``[train]`` extra) as an opponent."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"no saved model at {str(path)!r} (an opponent ending in .zip is a saved "
+                                    "MaskablePPO model)")
+        try:
+            from sb3_contrib import MaskablePPO
+        except ImportError as err:
+            raise ImportError("loading a model as an opponent needs the [train] extra: "
+                              "pip install 'smac-hard-gym[train]'") from err
+        model = MaskablePPO.load(str(path), device="cpu")
+        return cls(model, name=name or f"model:{path.stem}", options=options)
+
+    def features(self, view: SideView) -> SideFeatures:
+        """This side's features on the view's map (built once per map and side)."""
+        key = (view.spec.name, view.side)
+        if key not in self._features:
+            self._features[key] = SideFeatures(view.spec, view.side, self.options)
+        return self._features[key]
+
+    def reset(self, view: SideView, battles: np.ndarray, rngs: list[np.random.Generator]) -> None:
+        n = view.n_own
+        if self.last_action.shape != (view.batch_size, n):
+            self.last_action = np.full((view.batch_size, n), -1, dtype=np.int64)
+        self.last_action[np.asarray(battles, dtype=np.int64)] = -1
+
+    def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
+        rows = np.flatnonzero(active)
+        if rows.size == 0:
+            return
+        feats = self.features(view)
+        masks, obs, state = feats.encode(view.state, self.last_action, view.episode_step, rows=rows)
+        actions = np.asarray(self._act(obs, masks, state)).astype(np.int64, copy=False)
+        if actions.shape != masks.shape[:2]:
+            raise ValueError(f"policy {self.name!r} returned actions of shape {actions.shape}, expected "
+                             f"{masks.shape[:2]} (battles, agents)")
+        actions = np.clip(actions, 0, feats.n_actions - 1)
+        unavailable = ~np.take_along_axis(masks, actions[..., None], axis=2)[..., 0]
+        if unavailable.any():  # a policy that ignores masks still plays legally: the agent's first legal action
+            actions[unavailable] = masks[unavailable].argmax(axis=1)
+        played = np.zeros((view.batch_size, feats.n_agents), dtype=np.int64)
+        played[rows] = actions
+        decode_actions(feats, view.state, played, commands, active)
+        self.last_action[rows] = actions
