@@ -1,5 +1,6 @@
 """Known solutions: strategies whose outcome is known from StarCraft II and the SMAC literature, played by scripted
-learner-side controllers against the opponents they are known to beat or lose to (32 seeded episodes each).
+learner-side controllers against the opponents they are known to beat or lose to (64 seeded episodes each: at 32
+the estimate of a 0.16 rate spreads by +-0.07, and hide_pick_off vs base read 0.25 on seed 0; 0.17 at 64, 0.16 at 128).
 
 The bounds come from the game, not from this engine: a bound that fails means a rule of the engine or a script does
 not behave as in StarCraft II (``opponents/known_solutions.py`` says which outcome each claim stands for).
@@ -13,7 +14,7 @@ import pytest
 from smac_hard_gym.envs.solutions import check_claim
 from smac_hard_gym.opponents.known_solutions import CLAIMS, claims_for_map, make_controller
 
-EPISODES = 32
+EPISODES = 64
 
 
 @pytest.mark.parametrize("claim", CLAIMS, ids=[f"{c.map_name}-{c.red}-vs-{c.blue}" for c in CLAIMS])

@@ -10,7 +10,7 @@ HELP = ("play scripted strategies whose outcome is known from the game (alternat
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", default=None, help="only the scenarios on this map")
-    parser.add_argument("--episodes", type=int, default=32, help="seeded episodes per pairing (default 32)")
+    parser.add_argument("--episodes", type=int, default=64, help="seeded episodes per pairing (default 64)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the episodes")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the table as JSON")
 
