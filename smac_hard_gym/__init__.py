@@ -4,7 +4,8 @@ Importing the package registers ``SMACHard-<map>-v0`` for every map in :func:`sm
 ``gymnasium.make("SMACHard-3m-v0")`` builds a :class:`~smac_hard_gym.envs.gym_env.SMACHardEnv` and
 ``gymnasium.make_vec("SMACHard-3m-v0", num_envs=8)`` a :class:`~smac_hard_gym.envs.vector.NativeVectorEnv`. The entry
 points are lazy strings: the import stays light (no engine compile, no torch), and ``"smac_hard_gym:SMACHard-3m-v0"``
-works in fresh worker processes. ``StarCraft2Env`` (SMAC's API) is exported lazily too.
+works in fresh worker processes. ``StarCraft2Env`` (SMAC's API) is exported lazily too, and so are
+``RayVectorEnv`` and ``make_ray_vec`` (vector workers on Ray; ``ray`` is imported only when they are used).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ _LAZY_EXPORTS = {
     "SMACHardEnv": "smac_hard_gym.envs.gym_env",
     "NativeVectorEnv": "smac_hard_gym.envs.vector",
     "SubprocVectorEnv": "smac_hard_gym.envs.subproc",
+    "RayVectorEnv": "smac_hard_gym.wrappers.ray_vec",  # needs the [ray] extra; ray loads only when asked for
+    "make_ray_vec": "smac_hard_gym.wrappers.ray_vec",
 }
 
 

@@ -2,13 +2,16 @@
 
 - :class:`~smac_hard_gym.wrappers.sb3.SB3VecEnv`: a Stable-Baselines3 ``VecEnv`` over any gymnasium vector env
   (``pip install smac-hard-gym[train]``).
+- :class:`~smac_hard_gym.wrappers.ray_vec.RayVectorEnv` and ``make_ray_vec``: vector workers as Ray actors, on one
+  machine or a cluster (``pip install smac-hard-gym[ray]``).
 
 Each adapter loads its library only when imported, so ``import smac_hard_gym.wrappers`` stays light.
 """
 
 from __future__ import annotations
 
-_LAZY_EXPORTS = {"SB3VecEnv": "smac_hard_gym.wrappers.sb3"}
+_LAZY_EXPORTS = {"SB3VecEnv": "smac_hard_gym.wrappers.sb3", "RayVectorEnv": "smac_hard_gym.wrappers.ray_vec",
+                 "make_ray_vec": "smac_hard_gym.wrappers.ray_vec"}
 
 __all__ = list(_LAZY_EXPORTS)
 

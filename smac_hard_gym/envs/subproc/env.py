@@ -147,9 +147,13 @@ class SubprocVectorEnv(VectorEnv):
         self.invalid_action = first["invalid_action"]  # the workers' policy for unavailable actions, if they say
         self._needs_reset = True  # until the first reset()
         self._ended = np.zeros(self.num_envs, dtype=bool)  # episodes that ended on the last step
-        self._block = SharedBlock(block_layout(self.single_observation_space, self.num_envs, self.mask_size))
+        self._block = self._new_block()
         self._masks = np.ones((self.num_envs, self.mask_size or 0), dtype=bool)
         self._masks_seen = False
+
+    def _new_block(self) -> SharedBlock | None:
+        """The shared memory the workers write observations and masks into (a transport without it returns None)."""
+        return SharedBlock(block_layout(self.single_observation_space, self.num_envs, self.mask_size))
 
     def _agreed_mode(self, descriptions: list[dict[str, Any]]) -> AutoresetMode:
         """The workers' common autoreset mode; raises when they differ, or differ from the one asked for."""

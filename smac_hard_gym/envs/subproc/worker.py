@@ -33,7 +33,7 @@ from smac_hard_gym.envs.autoreset import AUTORESET_NAMES
 from smac_hard_gym.envs.subproc.shared_memory import SharedBlock, write_masks, write_obs
 from smac_hard_gym.lifetime import die_with_parent
 
-__all__ = ["BatchWorker", "worker_main", "pack_error", "unpack_error"]
+__all__ = ["BatchWorker", "Server", "worker_main", "pack_error", "unpack_error", "limit_threads"]
 
 _ORPHAN_POLL = 1.0  # seconds between checks that the parent is still there
 
@@ -114,7 +114,7 @@ def pack_error(err: BaseException) -> tuple[bytes | None, str]:
         return None, text
 
 
-def unpack_error(value: tuple[bytes | None, str], index: int) -> BaseException:
+def unpack_error(value: tuple[bytes | None, str], index: int, where: str = "SubprocVectorEnv worker") -> BaseException:
     """The exception :func:`pack_error` packed in worker ``index``, with the worker's traceback as a note."""
     blob, text = value
     err: BaseException | None = None
@@ -126,7 +126,7 @@ def unpack_error(value: tuple[bytes | None, str], index: int) -> BaseException:
     if err is None:
         err = RuntimeError(text.strip().splitlines()[-1] if text.strip() else "unknown error")
     if hasattr(err, "add_note"):
-        err.add_note(f"(raised in SubprocVectorEnv worker {index}; its traceback:)\n{text}")
+        err.add_note(f"(raised in {where} {index}; its traceback:)\n{text}")
     return err
 
 
@@ -134,7 +134,7 @@ def unpack_error(value: tuple[bytes | None, str], index: int) -> BaseException:
 # The worker process.
 
 
-def _limit_threads(threads: int) -> None:
+def limit_threads(threads: int) -> None:
     """One worker per core is the point: keep numba and BLAS from starting a thread per core in each worker."""
     for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = str(threads)
@@ -146,7 +146,7 @@ def _limit_threads(threads: int) -> None:
         sys.modules["torch"].set_num_threads(threads)
 
 
-class _Server:
+class Server:
     """A worker's state between messages: its batch env and the shared rows it writes."""
 
     def __init__(self, worker: BatchWorker) -> None:
@@ -171,6 +171,14 @@ class _Server:
             name, args, kwargs = payload
             return self.worker.call(name, *args, **kwargs)
         raise ValueError(f"unknown worker command {command!r}")
+
+    def answer(self, command: str, payload: Any) -> tuple[str, Any]:
+        """The message that answers one command: ``("ok", reply)``, or ``("error", packed)`` for an env error (the
+        worker keeps serving). Shared by the pipe loop and Ray actors."""
+        try:
+            return "ok", self.handle(command, payload)
+        except Exception as err:  # an env error: report it, keep serving
+            return "error", pack_error(err)
 
     def _obs(self, obs: Any) -> Any:
         return write_obs(self.block, obs, self.start, self.stop)
@@ -197,7 +205,7 @@ def _build(conn: Connection, factory_bytes: bytes, autoreset_mode: Any) -> Batch
     return worker
 
 
-def _serve(conn: Connection, server: _Server, parent: int) -> None:
+def _serve(conn: Connection, server: Server, parent: int) -> None:
     """Answer commands until ``close``, a closed pipe, or the parent's death."""
     while True:
         if not conn.poll(_ORPHAN_POLL):
@@ -207,11 +215,7 @@ def _serve(conn: Connection, server: _Server, parent: int) -> None:
         command, payload = conn.recv()
         if command == "close":
             return
-        try:
-            reply = server.handle(command, payload)
-            conn.send(("ok", reply))
-        except Exception as err:  # an env error: report it, keep serving
-            conn.send(("error", pack_error(err)))
+        conn.send(server.answer(command, payload))
 
 
 def worker_main(conn: Connection, parent_end: Connection, factory_bytes: bytes, autoreset_mode: Any,
@@ -219,12 +223,12 @@ def worker_main(conn: Connection, parent_end: Connection, factory_bytes: bytes, 
     """A worker process's body: build the env from the cloudpickled factory, then serve the parent's commands."""
     parent_end.close()
     die_with_parent()
-    _limit_threads(threads)
+    limit_threads(threads)
     parent = os.getppid()
     worker = _build(conn, factory_bytes, autoreset_mode)
     if worker is None:
         return
-    server = _Server(worker)
+    server = Server(worker)
     try:
         _serve(conn, server, parent)
     except (EOFError, BrokenPipeError, KeyboardInterrupt):

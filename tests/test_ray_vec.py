@@ -1,0 +1,174 @@
+"""RayVectorEnv: the same episodes as SubprocVectorEnv for the same seeds, an actor killed mid-run is rebuilt and its
+battles flagged, and close() leaves no actor. Runs on a local Ray started here (2 CPUs); skipped without ray."""
+
+import functools
+import signal
+import time
+
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+from test_vector_env import assert_same
+
+ray = pytest.importorskip("ray", reason="ray is not installed (pip install 'smac-hard-gym[ray]')")
+
+from smac_hard_gym.envs.subproc import RESTART_KEY, WorkerError, make_subproc_env  # noqa: E402
+from smac_hard_gym.envs.vector import NativeVectorEnv  # noqa: E402
+from smac_hard_gym.wrappers.ray_vec import RayVectorEnv, make_ray_vec  # noqa: E402
+
+TEST_DEADLINE = 240  # seconds any one test may take on a loaded 2-core machine
+
+
+@pytest.fixture(scope="module", autouse=True)
+def local_ray():
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield
+    ray.shutdown()
+
+
+@pytest.fixture(autouse=True)
+def deadline():
+    """Fail a test that runs past TEST_DEADLINE instead of hanging the suite."""
+    def expire(signum, frame):
+        raise TimeoutError(f"test ran past its {TEST_DEADLINE} s deadline")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(TEST_DEADLINE)
+    yield
+    signal.alarm(0)
+    signal.signal(signal.SIGALRM, previous)
+
+
+def _gone(names):
+    """True when Ray finds none of the named actors."""
+    for name in names:
+        try:
+            ray.get_actor(name)
+            return False
+        except ValueError:
+            pass
+    return True
+
+
+def _legal_actions(env, rng, n, agents, n_actions):
+    masks = env.action_masks().reshape(n, agents, n_actions)
+    return np.array([[rng.choice(np.flatnonzero(m)) for m in row] for row in masks])
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
+def test_same_seeds_give_the_episodes_of_the_subprocess_env(mode):
+    kwargs = {"opponent": "default", "invalid_action": "noop", "max_episode_steps": 12}
+    ray_env = make_ray_vec("3m", 2, 3, autoreset_mode=mode, **kwargs)
+    sub_env = make_subproc_env("3m", 2, 3, autoreset_mode=mode, **kwargs)
+    try:
+        assert ray_env.single_observation_space == sub_env.single_observation_space
+        assert ray_env.single_action_space == sub_env.single_action_space
+        assert ray_env.metadata["autoreset_mode"] is mode
+        for got, want in zip(ray_env.reset(seed=5), sub_env.reset(seed=5), strict=True):
+            assert_same(got, want)
+        rng = np.random.default_rng(0)
+        ended = 0
+        for _ in range(50):
+            np.testing.assert_array_equal(ray_env.action_masks(), sub_env.action_masks())
+            actions = _legal_actions(sub_env, rng, 6, 3, 9)
+            got, want = ray_env.step(actions), sub_env.step(actions)
+            for name, x, y in zip("obs reward terminated truncated infos".split(), got, want, strict=True):
+                assert_same(x, y, name)
+            ended += int((got[2] | got[3]).sum())
+        assert ended >= 6  # episodes of at most 12 steps: autoreset was exercised
+    finally:
+        ray_env.close()
+        sub_env.close()
+
+
+def test_dict_observations_and_reset_masks_match_too():
+    kwargs = {"opponent": "base", "obs_mode": "dict", "max_episode_steps": 8}
+    ray_env = make_ray_vec("2s3z", 2, 2, autoreset_mode="Disabled", **kwargs)
+    sub_env = make_subproc_env("2s3z", 2, 2, autoreset_mode="Disabled", **kwargs)
+    try:
+        for got, want in zip(ray_env.reset(seed=1), sub_env.reset(seed=1), strict=True):
+            assert_same(got, want)
+        for _ in range(8):
+            actions = np.ones((4, 5), dtype=np.int64)
+            for x, y in zip(ray_env.step(actions), sub_env.step(actions), strict=True):
+                assert_same(x, y)
+        mask = np.array([False, True, True, False])
+        for got, want in zip(ray_env.reset(seed=9, options={"reset_mask": mask}),
+                             sub_env.reset(seed=9, options={"reset_mask": mask}), strict=True):
+            assert_same(got, want)
+    finally:
+        ray_env.close()
+        sub_env.close()
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
+def test_killing_an_actor_mid_run_recovers_within_10_s_with_its_battles_flagged(mode):
+    env = make_ray_vec("3m", 2, 2, autoreset_mode=mode, on_worker_error="restart", opponent="base")
+    try:
+        env.reset(seed=0)
+        rng = np.random.default_rng(1)
+        for _ in range(3):
+            env.step(_legal_actions(env, rng, 4, 3, 9))
+        killed = env.actor_names[1]
+        ray.kill(env.actors[1])
+        start = time.monotonic()
+        obs, reward, terminated, truncated, infos = env.step(_legal_actions(env, rng, 4, 3, 9))
+        elapsed = time.monotonic() - start
+        assert elapsed < 10, f"recovery took {elapsed:.1f} s"
+        assert infos[RESTART_KEY].tolist() == [False, False, True, True]
+        assert infos[f"_{RESTART_KEY}"].tolist() == [False, False, True, True]
+        assert truncated[2:].all() and env.restarts == 1
+        assert killed not in env.actor_names and _gone([killed])
+        if mode == AutoresetMode.SAME_STEP:
+            assert infos["_final_obs"][2:].all()
+        for _ in range(5):  # the rebuilt actor plays on
+            obs, reward, terminated, truncated, infos = env.step(_legal_actions(env, rng, 4, 3, 9))
+            assert RESTART_KEY not in infos
+        assert obs.shape == (4, env.single_observation_space.shape[0])
+    finally:
+        env.close()
+
+
+def test_killing_an_actor_with_raise_closes_everything_and_names_it():
+    env = make_ray_vec("3m", 2, 1, autoreset_mode="SameStep", opponent="base")
+    names = env.actor_names
+    env.reset(seed=0)
+    ray.kill(env.actors[0])
+    with pytest.raises(WorkerError, match=r"worker 0 \(battles 0..0\): died during step"):
+        env.step(np.ones((2, 3), dtype=np.int64))
+    assert env.closed and _gone(names)
+
+
+def test_close_leaves_no_actor():
+    env = make_ray_vec("3m", 2, 2, autoreset_mode="SameStep")
+    names = env.actor_names
+    assert len(names) == 2 and not _gone(names[:1]) and not _gone(names[1:])
+    env.reset(seed=0)
+    env.close()
+    assert _gone(names)
+    env.close()  # idempotent
+    with pytest.raises(RuntimeError, match="closed"):
+        env.reset()
+
+
+def test_env_errors_reach_the_parent_and_bad_factories_are_reported():
+    env = RayVectorEnv([functools.partial(NativeVectorEnv, "3m", num_envs=2, autoreset_mode="SameStep",
+                                          invalid_action="raise")], autoreset_mode="SameStep")
+    try:
+        env.reset(seed=0)
+        with pytest.raises(Exception, match="not available"):
+            env.step(np.full((2, 3), 8, dtype=np.int64))
+        env.step(np.ones((2, 3), dtype=np.int64))  # the env goes on
+    finally:
+        env.close()
+    with pytest.raises(WorkerError, match="unknown map"):
+        RayVectorEnv([functools.partial(NativeVectorEnv, "no_such_map", num_envs=2)])
+    with pytest.raises(ValueError, match="unknown map"):
+        make_ray_vec("no_such_map", 1, 1)
+
+
+def test_make_ray_vec_is_a_lazy_export():
+    import smac_hard_gym
+
+    assert smac_hard_gym.make_ray_vec is make_ray_vec
+    assert smac_hard_gym.RayVectorEnv is RayVectorEnv
