@@ -21,6 +21,7 @@ COMMANDS: dict[str, str] = {
     "replay": "smac_hard_gym.commands.replay",
     "train": "smac_hard_gym.commands.train",
     "eval": "smac_hard_gym.commands.eval",
+    "baselines": "smac_hard_gym.commands.baselines",
 }
 
 

@@ -1,0 +1,230 @@
+"""Baseline sweeps: the planner (runs, skip finished, redo partial), aggregation over hand-made run directories with
+hand-computed means and spreads, the markdown report, the CLI's one-line errors, and one tiny sweep end to end."""
+
+import csv
+import json
+import math
+import sys
+
+import pytest
+
+from smac_hard_gym import baselines
+from smac_hard_gym.baselines import PAPER, Run, SweepConfig, aggregate, plan, report_markdown, run_state, run_sweep
+from smac_hard_gym.cli import main
+
+
+def _fake_run(out, map_name, opponent, seed, final, curve, blackbox=None, interrupted=False, value=None):
+    """A run directory as `smac-hard-gym train` (and `eval --json`) leave it, with chosen numbers."""
+    path = Run(map_name, opponent, seed).path(out)
+    path.mkdir(parents=True)
+    (path / "config.json").write_text(json.dumps({"map_name": map_name, "opponent": opponent, "seed": seed}))
+    with (path / "curve.csv").open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["timesteps", "win_rate"])
+        writer.writerows(curve)
+    (path / "summary.json").write_text(json.dumps({
+        "map": map_name, "opponent": opponent, "timesteps": curve[-1][0], "final_win_rate": final,
+        "best_win_rate": max(r for _, r in curve), "train_wall_s": 1.0, "interrupted": interrupted}))
+    if blackbox is not None:
+        weights = {name: 1.0 / len(blackbox) for name in blackbox}
+        (path / "blackbox.json").write_text(json.dumps({
+            "scripts": {name: {"win_rate": rate} for name, rate in blackbox.items()}, "weights": weights,
+            "mixture": {"win_rate": sum(weights[n] * r for n, r in blackbox.items())}}))
+    if value is not None:
+        (path / "value.json").write_text(json.dumps({"mean_value": value}))
+    return path
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Planning and resuming.
+
+
+def test_plan_covers_maps_opponents_and_seeds_in_order(tmp_path):
+    config = SweepConfig(maps=["3m", "MMM"], seeds=2, out=str(tmp_path))
+    assert [r.label for r in plan(config)] == [
+        "3m-smac-s0", "3m-smac-s1", "3m-default-s0", "3m-default-s1",
+        "MMM-smac-s0", "MMM-smac-s1", "MMM-default-s0", "MMM-default-s1"]
+    assert len(plan(SweepConfig(seeds=3, out=str(tmp_path)))) == 23 * 2 * 3
+    assert config.blackbox and not config.values
+
+
+def test_mixing_experiment_plan(tmp_path):
+    config = SweepConfig(experiment="mixing", seeds=1, out=str(tmp_path))
+    assert [r.label for r in plan(config)] == ["10m_vs_11m-nearest-s0", "10m_vs_11m-weakest-s0",
+                                               "10m_vs_11m-nearest+weakest-s0"]
+    assert config.values and not config.blackbox
+
+
+def test_run_state(tmp_path):
+    assert run_state(tmp_path / "none") == "todo"
+    (tmp_path / "half").mkdir()
+    assert run_state(tmp_path / "half") == "partial"
+    done = _fake_run(tmp_path, "3m", "smac", 0, 1.0, [(0, 0.0), (256, 1.0)])
+    assert run_state(done) == "done"
+    cut = _fake_run(tmp_path, "3m", "smac", 1, 1.0, [(0, 0.0), (256, 1.0)], interrupted=True)
+    assert run_state(cut) == "partial"
+
+
+def test_sweep_skips_finished_runs_and_redoes_partial_ones(tmp_path, monkeypatch):
+    """Training is replaced by a child that writes a run's files; only the runs not done are started."""
+    started = tmp_path / "started.txt"
+
+    def fake_train(run, config):
+        path = run.path(config.out)
+        code = (f"import json, pathlib; p = pathlib.Path({str(path)!r}); p.mkdir(parents=True, exist_ok=True); "
+                f"open({str(started)!r}, 'a').write({run.label!r} + '\\n'); "
+                f"(p / 'curve.csv').write_text('timesteps,win_rate\\n0,0.0\\n256,0.5\\n'); "
+                f"(p / 'summary.json').write_text(json.dumps({{'map': {run.map_name!r}, "
+                f"'opponent': {run.opponent!r}, 'timesteps': 256, 'final_win_rate': 0.5, 'best_win_rate': 0.5, "
+                f"'interrupted': False}}))")
+        return [sys.executable, "-c", code]
+
+    monkeypatch.setattr(baselines, "train_command", fake_train)
+    out = tmp_path / "out"
+    config = SweepConfig(maps=["3m"], seeds=3, opponents=["default"], out=str(out), jobs=2)
+    _fake_run(out, "3m", "default", 0, 1.0, [(0, 0.0), (256, 1.0)])  # done: kept
+    partial = Run("3m", "default", 1).path(out)
+    partial.mkdir(parents=True)
+    (partial / "stale.txt").write_text("from a killed run")
+    results = run_sweep(config, progress=False, log=lambda _: None)
+    assert sorted(started.read_text().split()) == ["3m-default-s1", "3m-default-s2"]
+    assert not (partial / "stale.txt").exists()
+    assert results["failed"] == []
+    assert [r["final_win_rate"] for r in results["runs"]] == [1.0, 0.5, 0.5]
+    started.unlink()
+    run_sweep(config, progress=False, log=lambda _: None)  # all done: nothing started
+    assert not started.exists()
+
+
+def test_a_failed_run_is_reported_and_redone_next_time(tmp_path, monkeypatch):
+    monkeypatch.setattr(baselines, "train_command", lambda run, config: [sys.executable, "-c", "raise SystemExit(3)"])
+    config = SweepConfig(maps=["3m"], seeds=1, opponents=["default"], out=str(tmp_path))
+    results = run_sweep(config, progress=False, log=lambda _: None)
+    assert results["failed"] == ["3m-default-s0"]
+    assert (Run("3m", "default", 0).path(tmp_path) / "train.log").is_file()
+    assert run_state(Run("3m", "default", 0).path(tmp_path)) == "partial"
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Aggregation and report.
+
+
+def test_aggregation_by_hand(tmp_path):
+    # 3m vs smac: final 1.0, 0.5, 0.75 -> mean 0.75, std sqrt((0.25^2 + 0.25^2 + 0) / 3) = 0.2041, min 0.5, max 1.0
+    for seed, (final, bb) in enumerate([(1.0, (0.0, 0.5)), (0.5, (0.25, 0.25)), (0.75, (0.5, 1.0))]):
+        _fake_run(tmp_path, "3m", "smac", seed, final, [(0, 0.0), (100, final / 2), (200, final)],
+                  blackbox={"line_front": bb[0], "other": bb[1]})
+    _fake_run(tmp_path, "3m", "default", 0, 0.25, [(0, 0.0), (200, 0.25)])
+    (tmp_path / "runs" / "3m-default-s1").mkdir()  # partial: left out
+    results = aggregate(tmp_path)
+    smac, default = results["table"]
+    assert (smac["map"], smac["opponent"], smac["seeds"]) == ("3m", "smac", 3)
+    assert smac["mean"] == pytest.approx(0.75)
+    assert smac["std"] == pytest.approx(math.sqrt(0.125 / 3))
+    assert (smac["min"], smac["max"]) == (0.5, 1.0)
+    assert (default["seeds"], default["mean"], default["std"]) == (1, 0.25, 0.0)
+    bb = {r["script"]: r for r in results["blackbox"]}
+    assert bb["line_front"]["mean"] == pytest.approx(0.25)  # (0 + 0.25 + 0.5) / 3
+    assert bb["other"]["mean"] == pytest.approx(0.5833333)  # (0.5 + 0.25 + 1) / 3
+    assert bb["mixture"]["mean"] == pytest.approx((0.25 + 0.25 + 0.75) / 3)  # per seed: 0.25, 0.25, 0.75
+    assert bb["line_front"]["weight"] == 0.5
+    with open(tmp_path / "results.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert rows[0] == {"map": "3m", "opponent": "smac", "seeds": "3", "mean": "0.7500", "std": "0.2041",
+                       "min": "0.5000", "max": "1.0000"}
+    with open(tmp_path / "blackbox.csv") as handle:
+        assert [r["script"] for r in csv.DictReader(handle)] == ["line_front", "other", "mixture"]
+    assert (tmp_path / "curves" / "3m.png").stat().st_size > 0
+    assert json.loads((tmp_path / "results.json").read_text())["table"] == results["table"]
+
+
+def test_mean_curve_over_seeds():
+    steps, mean, low, high = baselines.mean_curve([{0: 0.0, 100: 0.5, 200: 1.0}, {0: 0.0, 100: 1.0, 200: 0.5}])
+    assert steps.tolist() == [0, 100, 200]
+    assert mean.tolist() == [0.0, 0.75, 0.75]
+    assert low.tolist() == [0.0, 0.5, 0.5] and high.tolist() == [0.0, 1.0, 1.0]
+
+
+def test_report_puts_ours_next_to_the_paper(tmp_path):
+    for seed, final in enumerate([1.0, 0.5]):
+        _fake_run(tmp_path, "3m", "smac", seed, final, [(0, 0.0), (1000, final)],
+                  blackbox={"line_front": final / 2})
+    path = baselines.write_report(tmp_path, tmp_path / "report.md")
+    text = path.read_text()
+    row = next(line for line in text.splitlines() if line.startswith("| 3m |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1:3] == ["0.98", "0.99"]  # paper, appendix A: QMIX 0.9798, MAPPO 0.9897
+    assert cells[3] == "0.75 ± 0.25 (0.50-1.00)"
+    assert cells[4:6] == ["0.99", "1.00"] and cells[8] == "not run yet"  # default: 10M table; ours not run
+    assert cells[9:11] == ["0.01", "0.10"] and cells[11] == "0.38 ± 0.12 (0.25-0.50)"
+    assert sum(line.count("not run yet") == 3 for line in text.splitlines()) == 22  # the other maps
+    assert "after 1,000 env steps" in text and "section 6.2" in text
+
+
+def test_paper_tables_cover_every_map():
+    from smac_hard_gym.maps import list_maps
+
+    for table in PAPER.values():
+        assert set(table) == set(list_maps())
+        assert all(0.0 <= v <= 1.0 for pair in table.values() for v in pair)
+    assert PAPER["default_10m"]["10m_vs_11m"] == (0.6813, 0.5681)
+    assert PAPER["blackbox_10m"]["2c_vs_64zg"] == (0.6238, 0.3419)
+
+
+def test_mixing_report_lists_values(tmp_path):
+    for opponent, value in (("nearest", 1.0), ("weakest", 0.8), ("nearest,weakest", 0.5)):
+        _fake_run(tmp_path, "10m_vs_11m", opponent, 0, 0.5, [(0, 0.0), (100, 0.5)], value=value)
+    results = aggregate(tmp_path, SweepConfig(experiment="mixing", seeds=1, out=str(tmp_path)))
+    assert [(r["opponent"], r["mean"]) for r in results["values"]] == [
+        ("nearest", 1.0), ("nearest,weakest", 0.5), ("weakest", 0.8)]
+    text = report_markdown(results)
+    assert "| 10m_vs_11m | nearest,weakest | 0.50 (1 seed) | 0.50 (1 seed) |" in text
+    assert "paper" not in text.lower()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Command line.
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--maps", "4m"], "unknown map '4m'"),
+    (["--maps", ","], "--maps must be 'all' or map names"),
+    (["--seeds", "0"], "seeds must be a positive int, got 0"),
+    (["--timesteps", "-5"], "timesteps must be a positive int"),
+    (["--jobs", "0"], "jobs must be a positive int"),
+    (["--maps", "3m", "--opponents", "nobody"], "unknown opponent 'nobody' for map '3m'"),
+    (["--report", "r.md", "--out", "/nonexistent/results"], "no runs under /nonexistent/results"),
+])
+def test_cli_bad_input_is_one_line(argv, message, capsys):
+    assert main(["baselines", *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("smac-hard-gym baselines: error: ") and message in err and err.count("\n") == 1
+
+
+def test_dry_run_prints_the_plan(tmp_path, capsys):
+    _fake_run(tmp_path, "3m", "smac", 0, 1.0, [(0, 0.0), (10, 1.0)])
+    assert main(["baselines", "--maps", "3m", "--seeds", "2", "--out", str(tmp_path), "--dry-run"]) == 0
+    printed = capsys.readouterr().out
+    assert "1 map(s) x 2 opponent(s) (smac, default) x 2 seed(s) = 4 runs" in printed
+    assert "done     3m-smac-s0" in printed and "todo     3m-default-s1" in printed
+    assert not (tmp_path / "results.json").exists()
+
+
+def test_tiny_sweep_end_to_end(tmp_path, capsys):
+    out = tmp_path / "results"
+    code = main(["baselines", "--maps", "3m", "--seeds", "1", "--opponents", "smac", "--timesteps", "256",
+                 "--num-envs", "8", "--eval-episodes", "4", "--out", str(out), "--no-progress",
+                 "--train-args", "--n-steps 32 --batch-size 64 --epochs 1"])
+    assert code == 0, capsys.readouterr()
+    run = out / "runs" / "3m-smac-s0"
+    for name in ("model.zip", "summary.json", "curve.csv", "train.log", "blackbox.json", "eval.log"):
+        assert (run / name).is_file(), name
+    results = json.loads((out / "results.json").read_text())
+    assert [(r["map"], r["opponent"], r["seeds"]) for r in results["table"]] == [("3m", "smac", 1)]
+    assert [r["script"] for r in results["blackbox"]] == ["line_front", "mixture"]
+    for name in ("results.csv", "blackbox.csv", "curves/3m.png"):
+        assert (out / name).is_file(), name
+    assert "| 3m |" in capsys.readouterr().out
+
+    baselines.value_main(str(run / "model.zip"), "smac", 4, 0, str(tmp_path / "value.json"))
+    assert math.isfinite(json.loads((tmp_path / "value.json").read_text())["mean_value"])
