@@ -3,7 +3,8 @@
 Needs the ``[train]`` extra (torch, stable-baselines3, sb3-contrib, matplotlib); everything heavy is imported inside
 the functions, so ``import smac_hard_gym.training`` is cheap.
 
-- :func:`train`: MaskablePPO on a :class:`~smac_hard_gym.envs.vector.NativeVectorEnv` (``SAME_STEP``) through the SB3
+- :func:`train`: MaskablePPO on a :class:`~smac_hard_gym.envs.vector.NativeVectorEnv` (``SAME_STEP``; with ``ray``,
+  a :class:`~smac_hard_gym.wrappers.ray_vec.RayVectorEnv` of ``ray_actors`` actors instead) through the SB3
   adapter, a masked deterministic win-rate evaluation on a schedule, and the run's files in ``out``:
   ``model.zip``, ``config.json``, ``curve.csv`` (timesteps, win rate, return, time inside the env), ``curve.png``
   and ``summary.json``. Time spent in ``env.step`` and ``action_masks`` is measured, so the env's share of the
@@ -64,6 +65,9 @@ class TrainConfig:
     league: bool = False  # self-play league: snapshots of the learner join the opponent's scripts (opponents.league)
     league_every: int = 0  # env steps between snapshots; 0: a fifth of the run
     league_weighting: str = "uniform"  # how members are drawn: "uniform" or "prioritized" (by the learner's losses)
+    ray: bool = False  # step the training battles in Ray actors (RayVectorEnv) instead of in this process
+    ray_address: str | None = None  # the Ray cluster to join (None: a local Ray, or the one already initialised)
+    ray_actors: int = 2  # actors of num_envs / ray_actors battles each
 
     def __post_init__(self) -> None:
         for name in ("timesteps", "num_envs", "eval_episodes", "eval_envs", "n_steps", "batch_size", "n_epochs",
@@ -81,6 +85,16 @@ class TrainConfig:
 
         if self.league_weighting not in WEIGHTINGS:
             raise ValueError(f"league_weighting must be one of {WEIGHTINGS}, got {self.league_weighting!r}")
+        if self.ray:
+            if isinstance(self.ray_actors, bool) or not isinstance(self.ray_actors, (int, np.integer)) \
+                    or self.ray_actors < 1 or self.num_envs % self.ray_actors:
+                raise ValueError(f"ray_actors must be a positive int dividing num_envs ({self.num_envs}), got "
+                                 f"{self.ray_actors!r}")
+            if self.league:
+                raise ValueError("--league and --ray cannot be combined: the league lives in the learner's process "
+                                 "(snapshots join it and its weights change as the run goes) while Ray actors build "
+                                 "their opponents once from a pickled factory; train the league without --ray, or "
+                                 "train on Ray against fixed opponents (scripts or saved models)")
         if self.league and self.obs_mode == "dict":
             raise ValueError("league snapshots play from the joint view: use obs_mode 'joint' or 'joint+state'")
         if not self.out:
@@ -397,8 +411,16 @@ def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, 
 
         start = make_opponent(map_name, opponent)
         league = League(start.scripts if isinstance(start, Mixture) else [start], weighting=config.league_weighting)
-    native = NativeVectorEnv(map_name, config.num_envs, autoreset_mode="SameStep",
-                             opponent=opponent if league is None else league, **kwargs)
+    if config.ray:
+        from smac_hard_gym.wrappers.ray_vec import make_ray_vec
+
+        native = make_ray_vec(map_name, config.ray_actors, config.num_envs // config.ray_actors,
+                              autoreset_mode="SameStep", address=config.ray_address, worker_threads=config.env_threads,
+                              opponent=opponent, **kwargs)
+        log(f"training battles on Ray: {native!r}")
+    else:
+        native = NativeVectorEnv(map_name, config.num_envs, autoreset_mode="SameStep",
+                                 opponent=opponent if league is None else league, **kwargs)
     timed = _timed_vec_env_class()(SB3VecEnv(native))
     venv = VecMonitor(timed)
     eval_env = NativeVectorEnv(map_name, min(config.eval_envs, config.eval_episodes), autoreset_mode="SameStep",

@@ -172,3 +172,49 @@ def test_make_ray_vec_is_a_lazy_export():
 
     assert smac_hard_gym.make_ray_vec is make_ray_vec
     assert smac_hard_gym.RayVectorEnv is RayVectorEnv
+
+
+def test_train_on_ray_actors(tmp_path, capsys):
+    pytest.importorskip("sb3_contrib", reason="training needs the [train] extra")
+    import json
+
+    from smac_hard_gym.cli import main
+
+    out = tmp_path / "run"
+    code = main(["train", "--ray", "--ray-actors", "2", "--map", "3m", "--timesteps", "256", "--num-envs", "4",
+                 "--n-steps", "32", "--batch-size", "64", "--epochs", "1", "--eval-every", "256",
+                 "--eval-episodes", "2", "--out", str(out), "--no-progress"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "training battles on Ray: RayVectorEnv(num_envs=4, actors=[2, 2]" in printed
+    config = json.loads((out / "config.json").read_text())
+    assert config["ray"] is True and config["ray_actors"] == 2
+    assert json.loads((out / "summary.json").read_text())["timesteps"] == 256
+    assert not [name for name in ray.util.list_named_actors() if name.startswith("smac-hard-gym-actor")]
+
+
+def test_league_and_ray_together_are_a_clear_error():
+    from smac_hard_gym.cli import main
+    from smac_hard_gym.training import TrainConfig
+
+    with pytest.raises(SystemExit, match="--league and --ray cannot be combined: the league lives in the learner"):
+        main(["train", "--league", "--ray", "--map", "3m"])
+    with pytest.raises(ValueError, match="ray_actors must be a positive int dividing num_envs"):
+        TrainConfig(num_envs=6, ray=True, ray_actors=4)
+
+
+def test_bench_ray_section(tmp_path):
+    import json
+
+    from smac_hard_gym.cli import main
+
+    path = tmp_path / "ray.json"
+    assert main(["bench", "vector", "--sections", "ray", "--ray-maps", "3m", "--ray-envs-per-actor", "2",
+                 "--seconds", "0.05", "--repeats", "2", "--json", str(path)]) == 0
+    doc = json.loads(path.read_text())
+    rows = {(r["mode"], r["workers"]): r for r in doc["results"] if r["section"] == "ray"}
+    assert set(rows) == {("ray", 1), ("subproc", 1), ("ray", 2), ("subproc", 2)}
+    assert all(len(r["runs"]) == 2 and r["steps_per_second"] > 0 for r in rows.values())
+    payload = doc["ray_payload"][0]["bytes_per_step_per_actor"]
+    assert payload["observations"] == 2 * 90 * 4 and payload["actions"] == 2 * 3 * 8
+    assert "Ray actors vs subprocess workers" in path.with_suffix(".md").read_text()

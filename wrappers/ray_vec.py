@@ -62,6 +62,7 @@ from smac_hard_gym.envs.subproc.worker import BatchWorker, Server, limit_threads
 __all__ = ["RayVectorEnv", "make_ray_vec", "ACTOR_PREFIX"]
 
 ACTOR_PREFIX = "smac-hard-gym-actor"  # actor names: <prefix>-<env id>-<worker index>-<generation>
+_THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 _CLOSE_WAIT = 5.0  # seconds close() waits for actors to close their envs, then for Ray to report them dead
 
 
@@ -118,8 +119,9 @@ class RayVectorEnv(SubprocVectorEnv):
         ``"ray://head:10001"``, ``"head:6379"``); None starts a local Ray, which ``close()`` shuts down again.
         A Ray initialised by the caller is used as it is. ``actor_options``: passed to ``.options()`` of each
         actor (default ``{"num_cpus": worker_threads}``: one core reserved per actor, so Ray places N actors on N
-        free cores across the cluster; add e.g. ``scheduling_strategy="SPREAD"``). ``ray_init_kwargs``: for
-        ``ray.init`` when this env starts Ray.
+        free cores across the cluster; add e.g. ``scheduling_strategy="SPREAD"``), with a ``runtime_env`` that runs
+        the actor at normal priority and limits its engine threads (its ``env_vars`` are merged).
+        ``ray_init_kwargs``: for ``ray.init`` when this env starts Ray.
     """
 
     def __init__(self, factories: Sequence[Callable[[], Any]], *, address: str | None = None,
@@ -146,7 +148,7 @@ class RayVectorEnv(SubprocVectorEnv):
         self.on_worker_error = on_worker_error
         self.max_failures = int(max_failures)
         self.worker_threads = int(worker_threads)
-        self.actor_options = {"num_cpus": self.worker_threads, **(actor_options or {})}
+        self.actor_options = _actor_options(actor_options, self.worker_threads)
         self._requested_mode = None if autoreset_mode is None else parse_autoreset_mode(autoreset_mode)
         self._env_id = uuid.uuid4().hex[:8]
         self.restarts = 0
@@ -309,6 +311,19 @@ class RayVectorEnv(SubprocVectorEnv):
             raise RuntimeError("this RayVectorEnv is closed")
 
 
+def _actor_options(given: dict[str, Any] | None, threads: int) -> dict[str, Any]:
+    """``.options()`` of every actor: one CPU per engine thread, and a worker process at normal priority with the
+    engine's threads limited (Ray starts workers at niceness 15, so on a busy machine an actor gets a fraction of
+    the core that a subprocess worker gets; ``RAY_worker_niceness`` in the actor's own runtime env undoes that on
+    every node). Entries of ``given`` win, its ``env_vars`` are merged."""
+    options = {"num_cpus": threads, **(given or {})}
+    runtime_env = dict(options.get("runtime_env") or {})
+    env_vars = {"RAY_worker_niceness": "0", **{v: str(threads) for v in _THREAD_VARS},
+                **(runtime_env.get("env_vars") or {})}
+    options["runtime_env"] = {**runtime_env, "env_vars": env_vars}
+    return options
+
+
 def _kill(actor: Any) -> None:
     try:
         ray.kill(actor, no_restart=True)
@@ -341,10 +356,11 @@ def _first_line(text: str) -> str:
 def make_ray_vec(map_name: str = "3m", num_actors: int = 2, envs_per_actor: int = 4, *,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, address: str | None = None,
                  timeout: float = 60.0, on_worker_error: str = "raise", actor_options: dict[str, Any] | None = None,
-                 **env_kwargs: Any) -> RayVectorEnv:
+                 worker_threads: int = 1, **env_kwargs: Any) -> RayVectorEnv:
     """``num_actors`` Ray actors, each running a :class:`~smac_hard_gym.envs.vector.NativeVectorEnv` of
-    ``envs_per_actor`` battles of ``map_name`` (``env_kwargs`` go to it: opponent, obs_mode, ...); battle ``i`` of the
-    batch is battle ``i % envs_per_actor`` of actor ``i // envs_per_actor``."""
+    ``envs_per_actor`` battles of ``map_name`` (``env_kwargs`` go to it: opponent, obs_mode, ...) on
+    ``worker_threads`` engine threads; battle ``i`` of the batch is battle ``i % envs_per_actor`` of actor
+    ``i // envs_per_actor``."""
     for name, value in (("num_actors", num_actors), ("envs_per_actor", envs_per_actor)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"{name} must be a positive int, got {value!r}")
@@ -357,4 +373,4 @@ def make_ray_vec(map_name: str = "3m", num_actors: int = 2, envs_per_actor: int 
     factory = functools.partial(NativeVectorEnv, map_name, num_envs=int(envs_per_actor), autoreset_mode=mode,
                                 **env_kwargs)
     return RayVectorEnv([factory] * int(num_actors), autoreset_mode=mode, address=address, timeout=timeout,
-                        on_worker_error=on_worker_error, actor_options=actor_options)
+                        on_worker_error=on_worker_error, actor_options=actor_options, worker_threads=worker_threads)

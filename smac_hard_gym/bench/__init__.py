@@ -35,6 +35,9 @@ from smac_hard_gym.bench.suite import (
     DEFAULT_ENVS_PER_WORKER,
     DEFAULT_MAPS,
     DEFAULT_NUM_ENVS,
+    DEFAULT_RAY_ACTORS,
+    DEFAULT_RAY_MAPS,
+    DEFAULT_SECTIONS,
     DEFAULT_SUBPROC_MAPS,
     DEFAULT_WORKERS,
     OPPONENTS,
@@ -51,5 +54,6 @@ __all__ = [
     "machine_info", "markdown_report", "must_reach", "plot_report", "profile_native", "profile_starcraft2",
     "run_smax", "run_suite", "smax_python", "source_version", "timed_repeats", "write_json",
     # The CLI's defaults and the paths the suite uses.
-    "DEFAULT_ENVS_PER_WORKER", "DEFAULT_SUBPROC_MAPS", "DEFAULT_WORKERS", "OPPONENTS", "REPO_ROOT", "SMAX_SCRIPT",
+    "DEFAULT_ENVS_PER_WORKER", "DEFAULT_SUBPROC_MAPS", "DEFAULT_SECTIONS", "DEFAULT_RAY_MAPS", "DEFAULT_RAY_ACTORS",
+    "DEFAULT_WORKERS", "OPPONENTS", "REPO_ROOT", "SMAX_SCRIPT",
 ]

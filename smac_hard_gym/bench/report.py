@@ -59,6 +59,7 @@ def markdown_report(doc: dict[str, Any], command: str = "") -> str:
     out += _noise_lines(doc)
     out += _native_table(doc)
     out += _subproc_table(doc)
+    out += _ray_table(doc)
     out += _single_env_table(doc)
     out += _opponent_table(doc)
     out += _memory_lines(doc)
@@ -149,6 +150,25 @@ def _subproc_table(doc: dict[str, Any]) -> list[str]:
                    + " | " + " / ".join(cores_lost_text(rows.get(w)) for w in workers) + " |")
     out += ["", "Speed-up needs free cores: the last column gives the cores lost to other processes and the "
             "hypervisor while each worker count was timed (1 / 2 / 4 workers)."]
+    return out
+
+
+def _ray_table(doc: dict[str, Any]) -> list[str]:
+    rows = select_rows(doc, "ray")
+    if not rows:
+        return []
+    out = ["", "## Ray actors vs subprocess workers (× K battles each, one numba thread each, interleaved rounds)", "",
+           "| map | K | transport | workers | steps/s | vs 1 of its kind | cores lost |",
+           "|---|---:|---|---:|---:|---:|---:|"]
+    for r in rows:
+        one = next((o for o in rows if o["map"] == r["map"] and o["mode"] == r["mode"] and o["workers"] == 1
+                    and o["extra"]["envs_per_worker"] == r["extra"]["envs_per_worker"]), None)
+        ratio = f"{r['steps_per_second'] / one['steps_per_second']:.2f}×" if one else "–"
+        out.append(f"| {r['map']} | {r['extra']['envs_per_worker']} | {r['mode']} | {r['workers']} | "
+                   f"{_fmt(r['steps_per_second'])}{_spread(r)} | {ratio} | {cores_lost_text(r)} |")
+    for p in doc.get("ray_payload", []):
+        sizes = ", ".join(f"{k.replace('_', ' ')} {v:,.0f}" for k, v in p["bytes_per_step_per_actor"].items())
+        out += ["", f"Bytes per step per actor, {p['map']} K={p['envs_per_actor']}: {sizes}."]
     return out
 
 

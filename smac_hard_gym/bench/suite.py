@@ -22,7 +22,10 @@ DEFAULT_NUM_ENVS = (1, 16, 256, 1024, 4096)
 DEFAULT_WORKERS = (1, 2, 4)
 DEFAULT_ENVS_PER_WORKER = (16, 256)
 DEFAULT_SUBPROC_MAPS = ("3m", "27m_vs_30m")
-SECTIONS = ("native", "engine", "subproc", "starcraft2", "opponents", "memory", "profile")
+SECTIONS = ("native", "engine", "subproc", "starcraft2", "opponents", "memory", "profile", "ray")
+DEFAULT_SECTIONS = tuple(s for s in SECTIONS if s != "ray")  # ray: only when asked for (needs the [ray] extra)
+DEFAULT_RAY_MAPS = ("27m_vs_30m",)
+DEFAULT_RAY_ACTORS = (1, 2)
 OPPONENTS = ("base", "default")
 
 
@@ -39,7 +42,11 @@ class SuiteConfig:
     opponent_num_envs: int = 256
     memory: Sequence[tuple[str, int]] = (("3m", 4096),)
     profile: Sequence[tuple[str, int]] = ()  # empty: each SMAX map at its best native batch, and StarCraft2Env 3m
-    sections: Sequence[str] = SECTIONS
+    sections: Sequence[str] = DEFAULT_SECTIONS
+    ray_maps: Sequence[str] = DEFAULT_RAY_MAPS
+    ray_actors: Sequence[int] = DEFAULT_RAY_ACTORS
+    ray_envs_per_actor: int = 256
+    ray_address: str | None = None  # a Ray cluster to run the ray section on (None: a local Ray started for it)
     seconds: float = 1.0
     repeats: int = 3
     seed: int = 0
@@ -51,7 +58,8 @@ class SuiteConfig:
 def _check_config(config: SuiteConfig) -> None:
     from smac_hard_gym.maps import load_map
 
-    for name in (*config.maps, *config.subproc_maps, *(m for m, _ in config.memory), *(m for m, _ in config.profile)):
+    for name in (*config.maps, *config.subproc_maps, *config.ray_maps, *(m for m, _ in config.memory),
+                 *(m for m, _ in config.profile)):
         load_map(name)  # a clear error for an unknown map before any timing
     bad = [s for s in config.sections if s not in SECTIONS]
     if bad:
@@ -66,6 +74,11 @@ def _check_config(config: SuiteConfig) -> None:
         if not 1 <= config.numba_threads <= numba.config.NUMBA_NUM_THREADS:
             raise ValueError(f"numba_threads must lie in 1..{numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS), "
                              f"got {config.numba_threads!r}")
+    if "ray" in config.sections:
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ValueError("the ray section needs Ray: pip install 'smac-hard-gym[ray]'") from None
     if not config.seconds > 0 or config.repeats < 1:
         raise ValueError(f"seconds must be > 0 and repeats >= 1, got {config.seconds!r} and {config.repeats!r}")
 
@@ -84,7 +97,8 @@ def run_suite(config: SuiteConfig, log: Callable[[str], None] = print) -> dict[s
     results: list[Measurement] = []
     probes: list[dict[str, Any]] = []
     doc: dict[str, Any] = {"benchmark": "vector", "config": {k: v for k, v in asdict(config).items()},
-                           "results": results, "cpu_probes": probes, "memory": [], "profiles": [], "peer": None}
+                           "results": results, "cpu_probes": probes, "memory": [], "profiles": [], "peer": None,
+                           "ray_payload": []}
     timing = {"seconds": config.seconds, "repeats": config.repeats, "seed": config.seed}
     started = time.perf_counter()
     doc["started"] = time.strftime("%Y-%m-%d %H:%M:%S %Z")
@@ -104,8 +118,10 @@ def run_suite(config: SuiteConfig, log: Callable[[str], None] = print) -> dict[s
         mem = "" if m.peak_bytes_per_env is None else f"  peak {m.peak_bytes_per_env / 1024:,.1f} KB/battle"
         if "compile_seconds" in m.extra:
             mem = f"  compile {m.extra['compile_seconds']:.1f} s"
-        who = f"{m.workers}x{m.extra.get('envs_per_worker')}" if m.section == "subproc" else f"N={m.num_envs}"
-        who_else = f"SMAX {m.mode}" if m.section == "smax" else m.opponent
+        who = (f"{m.workers}x{m.extra.get('envs_per_worker')}" if m.section in ("subproc", "ray")
+               else f"N={m.num_envs}")
+        who_else = f"SMAX {m.mode}" if m.section == "smax" else f"{m.mode} {m.opponent}" if m.section == "ray" \
+            else m.opponent
         log(f"  {m.section:<10} {m.map:<12} {who:<9} {who_else:<10} {m.steps_per_second:>12,.0f} "
             f"steps/s  ({lo:,.0f}-{hi:,.0f}){mem}")
 
@@ -147,6 +163,19 @@ def run_suite(config: SuiteConfig, log: Callable[[str], None] = print) -> dict[s
             for k in config.envs_per_worker:
                 for w in config.workers:
                     record(bench_subproc(name, w, k, opponent=config.opponent, **timing))
+    if "ray" in sections:
+        from smac_hard_gym.bench.ray_section import bench_ray
+
+        probe("ray")
+        log(f"Ray actors vs subprocess workers (x {config.ray_envs_per_actor} battles each), interleaved rounds:")
+        for name in config.ray_maps:
+            measured, payload = bench_ray(name, config.ray_actors, config.ray_envs_per_actor,
+                                          opponent=config.opponent, address=config.ray_address, log=log, **timing)
+            for m in measured:
+                record(m)
+            doc["ray_payload"].append(payload)
+            log("  bytes per step per actor: " + ", ".join(
+                f"{k} {v:,.0f}" for k, v in payload["bytes_per_step_per_actor"].items()))
     if "starcraft2" in sections:
         probe("starcraft2")
         log("StarCraft2Env, one battle, pymarl loop:")

@@ -36,6 +36,15 @@ def must_reach(doc: dict[str, Any]) -> list[dict[str, Any]]:
                                f"{heavy['map']} K={heavy['k']}: {heavy['sps_1']:,.0f} -> {heavy['sps_2']:,.0f} "
                                f"steps/s; cores lost to others meanwhile {cores_lost_text(rows.get(1))} / "
                                f"{cores_lost_text(rows.get(2))}"))
+    ray_rows = {r["workers"]: r for r in select_rows(doc, "ray", map="27m_vs_30m", mode="ray")
+                if r["extra"]["envs_per_worker"] == 256}
+    if 1 in ray_rows and 2 in ray_rows:
+        one, two = ray_rows[1], ray_rows[2]
+        targets.append(_target("Ray 2 actors >= 1.5x 1 actor, 27m_vs_30m K=256", two["steps_per_second"]
+                               / one["steps_per_second"], 1.5,
+                               f"{one['steps_per_second']:,.0f} -> {two['steps_per_second']:,.0f} steps/s "
+                               f"(medians of {len(two['runs'])} interleaved rounds); cores lost to others meanwhile "
+                               f"{cores_lost_text(one)} / {cores_lost_text(two)}"))
     for probe in doc.get("memory", []):
         if probe["map"] == "3m" and probe["num_envs"] == 4096:
             traced = next((r["peak_bytes_per_env"] for r in select_rows(doc, "native", map="3m", num_envs=4096)

@@ -66,6 +66,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         DEFAULT_ENVS_PER_WORKER,
         DEFAULT_MAPS,
         DEFAULT_NUM_ENVS,
+        DEFAULT_RAY_ACTORS,
+        DEFAULT_RAY_MAPS,
+        DEFAULT_SECTIONS,
         DEFAULT_SUBPROC_MAPS,
         DEFAULT_WORKERS,
         OPPONENTS,
@@ -96,7 +99,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="MAP:N configurations whose peak RSS is read in a fresh process (default 3m:4096)")
     vec.add_argument("--profile", type=_map_sizes, default=[],
                      help="MAP:N configurations to profile (default: each SMAX map at its best native batch)")
-    vec.add_argument("--sections", type=_names, default=list(SECTIONS), help=f"subset of {csv(SECTIONS)}")
+    vec.add_argument("--sections", type=_names, default=list(DEFAULT_SECTIONS),
+                     help=f"subset of {csv(SECTIONS)} (default {csv(DEFAULT_SECTIONS)}; ray needs the [ray] extra)")
+    vec.add_argument("--ray-maps", type=_names, default=list(DEFAULT_RAY_MAPS),
+                     help=f"maps of the ray section (default {csv(DEFAULT_RAY_MAPS)})")
+    vec.add_argument("--ray-actors", type=_ints, default=list(DEFAULT_RAY_ACTORS),
+                     help=f"Ray actor counts, each against as many subprocess workers (default "
+                          f"{csv(DEFAULT_RAY_ACTORS)})")
+    vec.add_argument("--ray-envs-per-actor", type=_count, default=256,
+                     help="battles per Ray actor (and subprocess worker) in the ray section, K (default 256)")
+    vec.add_argument("--ray-address", default=None, metavar="ADDRESS",
+                     help="run the ray section on this Ray cluster (default: a local Ray started for it)")
     vec.add_argument("--seconds", type=_positive, default=1.0, help="seconds per timed window (default 1)")
     vec.add_argument("--repeats", type=_count, default=3, help="timed windows; the median is reported (default 3)")
     vec.add_argument("--seed", type=int, default=0)
@@ -182,7 +195,9 @@ def _run_vector(args: argparse.Namespace) -> int:
                          envs_per_worker=args.envs_per_worker, subproc_maps=args.subproc_maps,
                          opponent_num_envs=args.opponent_num_envs, memory=args.memory, profile=args.profile,
                          sections=args.sections, seconds=args.seconds, repeats=args.repeats, seed=args.seed,
-                         peer=args.peer, peer_python=args.peer_python, numba_threads=args.numba_threads)
+                         peer=args.peer, peer_python=args.peer_python, numba_threads=args.numba_threads,
+                         ray_maps=args.ray_maps, ray_actors=args.ray_actors,
+                         ray_envs_per_actor=args.ray_envs_per_actor, ray_address=args.ray_address)
     print("config: " + ", ".join(f"{k}={v}" for k, v in vars(args).items() if k not in ("command", "target")))
     try:
         doc = run_suite(config)

@@ -1,4 +1,5 @@
-"""``smac-hard-gym train``: MaskablePPO on the native vector env, with a masked win-rate evaluation on a schedule.
+"""``smac-hard-gym train``: MaskablePPO on the native vector env (or on Ray actors with ``--ray [ADDRESS]``), with a
+masked win-rate evaluation on a schedule.
 
 Writes ``model.zip``, ``config.json``, ``curve.csv``, ``curve.png`` and ``summary.json`` into ``--out``. Needs the
 ``[train]`` extra: ``pip install -e ".[train]"``.
@@ -43,6 +44,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="env steps between league snapshots (default: a fifth of --timesteps)")
     parser.add_argument("--league-weighting", default="uniform", choices=("uniform", "prioritized"),
                         help="how league members are drawn: equally, or more often the less the learner beats them")
+    parser.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
+                        help="step the training battles in Ray actors: a local Ray, or the cluster at ADDRESS "
+                             "('auto', 'head:6379', 'ray://head:10001'); needs the [ray] extra; not with --league")
+    parser.add_argument("--ray-actors", type=int, default=2,
+                        help="Ray actors, each with num-envs / ray-actors battles (default 2)")
     parser.add_argument("--tensorboard", default="", metavar="DIR",
                         help="also log to TensorBoard in DIR (needs the tensorboard package)")
 
@@ -67,10 +73,16 @@ def run(args: argparse.Namespace) -> int:
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, net_arch=net_arch,
             torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
             tensorboard=args.tensorboard, league=args.league, league_every=args.league_every,
-            league_weighting=args.league_weighting)
+            league_weighting=args.league_weighting, ray=args.ray is not None,
+            ray_address=None if args.ray in (None, "local") else args.ray, ray_actors=args.ray_actors)
+        if config.ray:
+            import ray  # noqa: F401  (a clear error now rather than after the model is built)
         from smac_hard_gym.opponents import make_opponent, opponent_from_text
 
         make_opponent(args.map, opponent_from_text(args.opponent))
+    except ModuleNotFoundError as err:
+        hint = "; pip install 'smac-hard-gym[ray]'" if err.name == "ray" else ""
+        raise SystemExit(f"smac-hard-gym train: {err}{hint}") from None
     except (TypeError, ValueError, FileNotFoundError, ImportError) as err:
         raise SystemExit(f"smac-hard-gym train: {err}") from None
     print("config:")
