@@ -112,7 +112,7 @@ class SMACHardParallelEnv(ParallelEnv):
             opponent_probs=opponent_probs, backend=backend, step_mul=step_mul,
             options=make_options(options, smac_options, keywords_of(SMACHardParallelEnv.__init__)),
             seed=None if seed is None else int(seed), backend_options=backend_options,
-            opponent_isolation=opponent_isolation, encode_state=False)
+            opponent_isolation=opponent_isolation)  # red's state comes with every step: state() reads it
         self.map_name = self.core.spec.name
         self._sides = (RED, BLUE) if self_play else (RED,)
         feats = self.core.features
