@@ -5,10 +5,12 @@ Every environment API (``StarCraft2Env``, the gymnasium env, the vector envs) is
 Public surface::
 
     core = TwoPlayerCore(map_name, batch_size=1, *, mode="script", opponent="smac", opponent_probs=None,
-                         backend="native", step_mul=8, options=SmacOptions(), seed=None, backend_options=None)
+                         backend="native", step_mul=8, options=SmacOptions(), seed=None, backend_options=None,
+                         opponent_isolation="guard", encode_state=True, episode_limit=None, red_script=None)
 
     core.reset(battles=None, seed=None)          # start new episodes (all battles, or the indices given)
-    result = core.step(red_actions, blue_actions=None, replace_invalid=False)   # int (B, n_red) / (B, n_blue)
+    result = core.step(red_actions, blue_actions=None, *, replace_invalid=False, hint="", checked=False)
+                                                 # actions int (B, n_red) / (B, n_blue); a StepResult
     core.avail_actions(side=RED)                 # bool (B, n, n_actions)   side: RED=0 / BLUE=1
     core.observations(side=RED, out=None)        # float32 (B, n, obs_size)
     core.global_state(side=RED, out=None)        # float32 (B, state_size)
