@@ -45,6 +45,7 @@ EXPERIMENTS: dict[str, dict[str, Any]] = {
                "values": True},
 }
 SWEEP_OPPONENTS = ("smac", "default")
+MIXTURE = "mixture"  # the black-box pool's row: the scripts' win rates weighted by the pool
 
 # ---------------------------------------------------------------------------------------------------------------
 # The paper's numbers (arXiv 2412.17707, SMAC-HARD; SC2 with pymarl2 QMIX and MAPPO, 5 seeds, 32 test episodes).
@@ -327,6 +328,7 @@ def value_main(model_path: str, opponent: str, episodes: int, seed: int, out: st
     from sb3_contrib import MaskablePPO
 
     from smac_hard_gym.envs.vector import NativeVectorEnv
+    from smac_hard_gym.opponents import opponent_from_text
     from smac_hard_gym.training import load_run_config
 
     torch.set_num_threads(1)
@@ -336,7 +338,8 @@ def value_main(model_path: str, opponent: str, episodes: int, seed: int, out: st
     kwargs = config.env_kwargs()
     map_name = kwargs.pop("map_name")
     model = MaskablePPO.load(model_path, device="cpu")
-    venv = NativeVectorEnv(map_name, episodes, autoreset_mode="SameStep", opponent=opponent, **kwargs)
+    venv = NativeVectorEnv(map_name, episodes, autoreset_mode="SameStep", opponent=opponent_from_text(opponent),
+                           **kwargs)
     try:
         value = value_estimate(model, venv, seed=seed + 1_000_003)  # the seeds of train's test episodes
     finally:
@@ -399,8 +402,12 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     for key in sorted({(r["map"], r["opponent"]) for r in runs}, key=_order):
         rates = [r["final_win_rate"] for r in runs if (r["map"], r["opponent"]) == key]
         table.append({"map": key[0], "opponent": key[1], **spread(rates)})
+    def script_order(item: tuple[tuple[str, str], list[float]]) -> tuple[Any, ...]:
+        (map_name, script), _ = item
+        return (_order((map_name, "")), script == MIXTURE, script)  # the scripts by name, then their mixture
+
     bb_table = [{"map": m, "script": s, "weight": weights.get((m, s), 1.0), **spread(v)}
-                for (m, s), v in sorted(blackbox.items(), key=lambda kv: (_order((kv[0][0], "")), kv[0][1] == "mixture", kv[0][1]))]
+                for (m, s), v in sorted(blackbox.items(), key=script_order)]
     value_table = [{"map": m, "opponent": o, **spread(v)} for (m, o), v in sorted(values.items(), key=_order)]
     saved = {}
     if config is None and (out / "results.json").is_file():
@@ -453,7 +460,8 @@ def _plot_curves(folder: Path, curves: dict[tuple[str, str], list[dict[int, floa
             if m != map_name:
                 continue
             steps, mean, low, high = mean_curve(seeds)
-            line = axes.plot(steps, mean, "o-", markersize=3, label=f"vs {opponent} ({len(seeds)} seeds)")[0]
+            count = f"{len(seeds)} seed" + ("s" if len(seeds) > 1 else "")
+            line = axes.plot(steps, mean, "o-", markersize=3, label=f"vs {opponent} ({count})")[0]
             axes.fill_between(steps, low, high, color=line.get_color(), alpha=0.2)
         axes.set_xlabel("env steps")
         axes.set_ylabel("test win rate (mean, min-max band)")

@@ -226,5 +226,5 @@ def test_tiny_sweep_end_to_end(tmp_path, capsys):
         assert (out / name).is_file(), name
     assert "| 3m |" in capsys.readouterr().out
 
-    baselines.value_main(str(run / "model.zip"), "smac", 4, 0, str(tmp_path / "value.json"))
+    baselines.value_main(str(run / "model.zip"), "smac,base", 4, 0, str(tmp_path / "value.json"))  # a mixture
     assert math.isfinite(json.loads((tmp_path / "value.json").read_text())["mean_value"])
