@@ -16,6 +16,7 @@ import numpy as np
 from smac_hard_gym.engine.state import RED
 from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.envs.joint_view import OBS_MODES, JointView
+from smac_hard_gym.envs.one_battle import RendersOneBattle
 from smac_hard_gym.smac.actions import ResetNeededError, validate_actions
 from smac_hard_gym.smac.features import SmacOptions
 
@@ -63,7 +64,7 @@ def check_invalid_action(policy: str) -> str:
     return policy
 
 
-class SMACHardEnv(gym.Env):
+class SMACHardEnv(RendersOneBattle, gym.Env):
     """SMAC-HARD as a Gymnasium environment: one controller chooses every agent's SMAC action each step.
 
     Description
@@ -123,6 +124,7 @@ class SMACHardEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": RENDER_FPS}
+    render_hint = "to the constructor (gymnasium.make(id, render_mode=...))"
 
     def __init__(self, map_name: str = "3m", *, opponent: Any = "default",
                  opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
@@ -189,26 +191,6 @@ class SMACHardEnv(gym.Env):
     def action_masks(self) -> np.ndarray:
         """Legal actions of the current state: flat bool ``(n_agents * n_actions,)``, agent-major (a new array)."""
         return self.view.masks(self.core.avail_actions(RED))[0]
-
-    def render(self) -> np.ndarray | None:
-        """The battle as an RGB frame ``(H, W, 3)`` uint8 (``"rgb_array"``), or shown in a window (``"human"``)."""
-        if self.render_mode is None:
-            gym.logger.warn("render() called with render_mode=None; pass render_mode='rgb_array' or 'human' to "
-                            "the constructor (gymnasium.make(id, render_mode=...))")
-            return None
-        if self._renderer is None:
-            from smac_hard_gym.render import EnvRenderer
-
-            self._renderer = EnvRenderer(self.core.spec, self.render_mode, step_mul=self.core.backend.step_mul)
-        return self._renderer.render(self.core.state, 0, int(self.core.episode_step[0]),
-                                     self.core.opponent_names()[0])
-
-    def close(self) -> None:
-        """Release the backend and any render window. Idempotent."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        self.core.close()
 
     @staticmethod
     def _row(obs: Any) -> Any:

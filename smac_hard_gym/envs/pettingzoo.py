@@ -23,6 +23,7 @@ from smac_hard_gym.engine.state import BLUE, RED
 from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.envs.gym_env import RAISE_HINT, RENDER_FPS, check_invalid_action, keywords_of, make_options
 from smac_hard_gym.envs.joint_view import OBS_LOW, state_high
+from smac_hard_gym.envs.one_battle import RendersOneBattle
 from smac_hard_gym.smac.actions import ResetNeededError, raise_unavailable, validate_actions
 from smac_hard_gym.smac.features import BLUE_WON, RED_WON, SIDE_NAMES, SmacOptions
 
@@ -33,7 +34,7 @@ _PZ_HINT = RAISE_HINT.replace("(gymnasium.make(id, invalid_action='noop'))",
                               "(parallel_env(..., invalid_action='noop'))")
 
 
-class SMACHardParallelEnv(ParallelEnv):
+class SMACHardParallelEnv(RendersOneBattle, ParallelEnv):
     """SMAC-HARD as a PettingZoo ``ParallelEnv``: every unit of the learning team(s) is an agent.
 
     Description
@@ -86,6 +87,7 @@ class SMACHardParallelEnv(ParallelEnv):
 
     metadata = {"name": "smac_hard_v0", "render_modes": ["rgb_array", "human"], "render_fps": RENDER_FPS,
                 "is_parallelizable": True}
+    render_hint = "to parallel_env(...)"
 
     def __init__(self, map_name: str = "3m", *, teams: str = "red", opponent: Any = "default",
                  opponent_probs: Sequence[float] | None = None, invalid_action: str = "noop",
@@ -303,29 +305,6 @@ class SMACHardParallelEnv(ParallelEnv):
         if team not in allowed:
             raise ValueError(f"team must be one of {allowed} with teams={self.teams!r}, got {team!r}")
         return self.core.global_state(SIDE_NAMES.index(team))[0]
-
-    def render(self) -> np.ndarray | None:
-        """The battle as an RGB frame ``(H, W, 3)`` uint8 (``"rgb_array"``), or shown in a window (``"human"``)."""
-        if self.render_mode is None:
-            import gymnasium
-
-            gymnasium.logger.warn("render() called with render_mode=None; pass render_mode='rgb_array' or 'human' "
-                                  "to parallel_env(...)")
-            return None
-        if self._renderer is None:
-            from smac_hard_gym.render import EnvRenderer
-
-            self._renderer = EnvRenderer(self.core.spec, self.render_mode, step_mul=self.core.backend.step_mul)
-        return self._renderer.render(self.core.state, 0, int(self.core.episode_step[0]),
-                                     self.core.opponent_names()[0])
-
-    def close(self) -> None:
-        """Release the backend and any render window. Idempotent."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        self.core.close()
-
 
 def parallel_env(map_name: str = "3m", **kwargs: Any) -> SMACHardParallelEnv:
     """A :class:`SMACHardParallelEnv` (PettingZoo's ``parallel_env`` door); keywords as the class takes them."""
