@@ -165,6 +165,8 @@ def test_env_errors_reach_the_parent_and_bad_factories_are_reported():
         RayVectorEnv([functools.partial(NativeVectorEnv, "no_such_map", num_envs=2)])
     with pytest.raises(ValueError, match="unknown map"):
         make_ray_vec("no_such_map", 1, 1)
+    with pytest.raises(ValueError, match="3 actors reserving 1 CPU each need 3 CPUs but the Ray cluster has 2"):
+        make_ray_vec("3m", 3, 1)
 
 
 def test_make_ray_vec_is_a_lazy_export():
@@ -218,3 +220,29 @@ def test_bench_ray_section(tmp_path):
     payload = doc["ray_payload"][0]["bytes_per_step_per_actor"]
     assert payload["observations"] == 2 * 90 * 4 and payload["actions"] == 2 * 3 * 8
     assert "Ray actors vs subprocess workers" in path.with_suffix(".md").read_text()
+
+
+def test_a_hung_actor_is_replaced_after_the_timeout(tmp_path):
+    import cloudpickle
+    import test_subproc
+
+    hang = tmp_path / "hang"
+    factories = [functools.partial(test_subproc.TickEnv, 1.0),
+                 functools.partial(test_subproc.TickEnv, 2.0, hang_file=str(hang))]
+    cloudpickle.register_pickle_by_value(test_subproc)  # the actors cannot import the tests
+    try:
+        env = RayVectorEnv(factories, autoreset_mode="NextStep", timeout=3.0, on_worker_error="restart")
+    finally:
+        cloudpickle.unregister_pickle_by_value(test_subproc)
+    try:
+        env.reset()
+        env.step(np.zeros(2, dtype=np.int64))  # warm: from now on `timeout` applies
+        hang.touch()
+        start = time.monotonic()
+        obs, reward, terminated, truncated, infos = env.step(np.zeros(2, dtype=np.int64))
+        assert time.monotonic() - start < 10
+        assert infos[RESTART_KEY].tolist() == [False, True] and truncated.tolist() == [False, True]
+        obs, *_ = env.step(np.zeros(2, dtype=np.int64))  # NEXT_STEP: the rebuilt actor starts a new episode
+        assert obs.tolist() == [[3, 1], [0, 2]]
+    finally:
+        env.close()

@@ -159,6 +159,7 @@ class RayVectorEnv(SubprocVectorEnv):
         self.address = address
         self._actor_class = ray.remote(BatchActor)
         try:
+            self._check_room(len(factories))
             self._start_workers(factories)
         except BaseException:
             self.close()
@@ -173,6 +174,15 @@ class RayVectorEnv(SubprocVectorEnv):
             self._launch(worker)
         descriptions = [self._receive_start(w) for w in self._workers]
         self._configure(descriptions)
+
+    def _check_room(self, n: int) -> None:
+        """Raise rather than wait forever when the cluster has fewer CPUs than ``n`` actors reserve."""
+        need = n * float(self.actor_options.get("num_cpus") or 0)
+        have = float(ray.cluster_resources().get("CPU", 0.0))
+        if need > have:
+            raise ValueError(f"{n} actors reserving {self.actor_options['num_cpus']} CPU each need {need:g} CPUs but "
+                             f"the Ray cluster has {have:g}; use fewer actors (more battles each), add nodes, or pass "
+                             "actor_options={'num_cpus': <a fraction>}")
 
     def _new_block(self) -> None:
         return None  # observations and masks travel in the replies, through Ray's object store
