@@ -203,3 +203,22 @@ def test_step_before_reset_and_malformed_actions_raise_and_change_nothing():
     _, _, _, _, infos = env.step([[1, 1, 1], [6, 1, 1]])  # an unavailable attack is replaced, and counted
     assert infos["invalid_actions"].tolist() == [0, 1]
     env.close()
+
+
+@pytest.mark.parametrize("mode", ["SameStep", "NextStep"])
+def test_returned_observations_are_never_changed_by_later_resets(mode):
+    # The core splices restarted battles into the arrays of the step it just made (in place, for speed): arrays the
+    # env has already returned must stay as they were, through autoresets and a user's partial reset.
+    env = NativeVectorEnv("3m", 4, autoreset_mode=mode, max_episode_steps=3, obs_mode="dict")
+    obs, _ = env.reset(seed=0)
+    kept = []
+    for _ in range(7):
+        kept.append((obs, {key: value.copy() for key, value in obs.items()}))
+        masks = env.action_masks().reshape(4, 3, -1)
+        obs, *_ = env.step(masks.argmax(axis=2))
+    kept.append((obs, {key: value.copy() for key, value in obs.items()}))
+    env.reset(options={"reset_mask": np.array([True, False, True, False])})
+    for returned, copy in kept:
+        for key in copy:
+            np.testing.assert_array_equal(returned[key], copy[key])
+    env.close()

@@ -242,16 +242,19 @@ class TwoPlayerCore:
     # Episodes.
 
     def reset(self, battles: Sequence[int] | np.ndarray | None = None,
-              seed: int | Sequence[int] | None = None) -> None:
+              seed: int | Sequence[int] | None = None, *, in_place: bool = False) -> None:
         """Start new episodes in ``battles`` (indices; all when None), seeding their generators (module docstring).
 
-        After an opponent error only a reset of every battle is accepted.
+        A partial reset re-encodes the restarted rows of red's current encoding into copies of its arrays (the last
+        step's result may be held by the caller); ``in_place`` writes them into those arrays instead, for a caller
+        that has not handed them out (a vector env's autoreset right after its step: copying 4096 battles'
+        observations cost 8% of an 8m step). After an opponent error only a reset of every battle is accepted.
         """
         self._check_open()
         rows = np.arange(self.batch_size) if battles is None else self._battle_indices(battles)
         if len(rows) == 0:
             return
-        if self._error is not None and len(np.unique(rows)) < self.batch_size:
+        if self._error is not None and np.unique(rows).size < self.batch_size:
             raise RuntimeError(f"the opponent failed ({self._error!r}); reset() every battle before going on")
         restart, engine_seeds = self._seed(rows, seed)
         if engine_seeds is None:  # every simulator stream goes on, like the scripts' generators
@@ -265,7 +268,7 @@ class TwoPlayerCore:
         self.done[rows] = False
         self.last_action[RED][rows] = -1
         self.last_action[BLUE][rows] = -1
-        self._refresh(rows)
+        self._refresh(rows, in_place)
         if self.opponent is not None:
             try:
                 self.opponent.reset(self.side_view(BLUE), rows, self.rngs)
@@ -473,12 +476,12 @@ class TwoPlayerCore:
 
     _invalidate = invalidate
 
-    def _refresh(self, rows: np.ndarray) -> None:
-        """After battles ``rows`` restarted: a partial reset re-encodes those rows into copies of red's cached
-        arrays (the previous ones may be held by the caller, as a step's result); otherwise forget the caches."""
+    def _refresh(self, rows: np.ndarray, in_place: bool) -> None:
+        """After battles ``rows`` restarted: a partial reset re-encodes those rows into red's cached arrays (copies
+        of them unless ``in_place``); a full one forgets the caches."""
         encoded = self._encoded[RED]
         self._invalidate()
-        if encoded is None or len(np.unique(rows)) == self.batch_size:
+        if encoded is None or (len(rows) >= self.batch_size and np.unique(rows).size == self.batch_size):
             return
         feats = self.features[RED]
         fresh = feats.encode(self.backend.state, self.last_action[RED], self.episode_step, rows=rows)
@@ -487,7 +490,7 @@ class TwoPlayerCore:
             if old is None:
                 spliced.append(None)
                 continue
-            array = old.copy()
+            array = old if in_place else old.copy()
             array[rows] = new
             spliced.append(array)
         self._encoded[RED] = tuple(spliced)

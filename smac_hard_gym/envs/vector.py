@@ -163,7 +163,7 @@ class NativeVectorEnv(VectorEnv):
             resets, stepped = ended, stepped & ~ended
         elif mode == AutoresetMode.NEXT_STEP:
             resets = self._ended.copy()
-        self._reset_battles(resets, None)
+        self._reset_battles(resets, None, in_place=True)  # this step's arrays are not handed out yet
         self._ended = ended if mode != AutoresetMode.SAME_STEP else np.zeros(self.num_envs, dtype=bool)
         if resets.any():
             avail, obs, state = core.encode(RED)
@@ -210,13 +210,14 @@ class NativeVectorEnv(VectorEnv):
     # -----------------------------------------------------------------------------------------------------------
     # Helpers.
 
-    def _reset_battles(self, rows: np.ndarray, seeds: list[int | None] | None) -> None:
-        """Reset the battles of bool ``rows``; ``seeds`` holds one seed (or None) per battle."""
+    def _reset_battles(self, rows: np.ndarray, seeds: list[int | None] | None, in_place: bool = False) -> None:
+        """Reset the battles of bool ``rows``; ``seeds`` holds one seed (or None) per battle; ``in_place``: see
+        ``TwoPlayerCore.reset``."""
         if not rows.any():
             return
         indices = np.flatnonzero(rows)
         if seeds is None:
-            self.core.reset(indices)
+            self.core.reset(indices, in_place=in_place)
             self._ended[rows] = False
             return
         seeded = [b for b in indices if seeds[b] is not None]
