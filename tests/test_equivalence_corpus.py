@@ -1,9 +1,9 @@
 """Every env API plays the recorded seeded episodes of every map bit for bit (``tests/equivalence_corpus.py``)."""
 
 import pytest
+from equivalence_corpus import APIS, PLAYERS, load
 
 from smac_hard_gym.maps import list_maps
-from tests.equivalence_corpus import APIS, PLAYERS, load
 
 CORPUS = load()
 
