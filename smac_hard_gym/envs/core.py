@@ -270,21 +270,13 @@ class TwoPlayerCore:
         self.last_action[BLUE][rows] = -1
         self._refresh(rows, in_place)
         if self.opponent is not None:
-            try:
-                self.opponent.reset(self.side_view(BLUE), rows, self.rngs)
-            except Exception as err:
-                self._error = err
-                raise
+            self._script_call(self.opponent.reset, BLUE, rows, self.rngs)
             names = self.opponent.names_of(rows)
             ids = {name: self._stats.name_id(name) for name in set(names)}
             self._names[rows] = names
             self._name_ids[rows] = [ids[name] for name in names]
         if self.red_script is not None:
-            try:
-                self.red_script.reset(self.side_view(RED), rows, self.red_rngs)
-            except Exception as err:
-                self._error = err
-                raise
+            self._script_call(self.red_script.reset, RED, rows, self.red_rngs)
         self._error = None
 
     def step(self, red_actions: Any, blue_actions: Any = None, *, replace_invalid: bool = False,
@@ -317,14 +309,14 @@ class TwoPlayerCore:
             raise ValueError("red is played by red_script: step() takes no red actions (pass None)")
         else:
             red = self._no_red_actions
-            self._act(self.red_script, RED, commands, active)
+            self._script_call(self.red_script.act, RED, commands, active)
         blue = self._no_actions
         if self.mode == "self-play":
             blue = self._decode(BLUE, blue_actions, active, False, np.zeros(size, dtype=np.int64), "", False)
         if hook is not None:
             clock = self._lap(hook, "actions", clock)
         if self.opponent is not None:
-            self._act(self.opponent, BLUE, commands, active)
+            self._script_call(self.opponent.act, BLUE, commands, active)
             if hook is not None:
                 clock = self._lap(hook, "opponent", clock)
 
@@ -360,9 +352,10 @@ class TwoPlayerCore:
         return StepResult(reward, terminated, truncated, outcome, dead_red, dead_blue, active, self._names.tolist(),
                           restarted & active, replaced, self.episode_step.copy(), avail, obs, global_state)
 
-    def _act(self, script: Script, side: int, commands: Commands, active: np.ndarray) -> None:
+    def _script_call(self, method: Any, side: int, *args: Any) -> None:
+        """A script's ``reset`` or ``act`` on ``side``'s view; a failure is kept, so only a full reset goes on."""
         try:
-            script.act(self.side_view(side), commands, active)
+            method(self.side_view(side), *args)
         except Exception as err:
             self._error = err
             raise
