@@ -31,8 +31,8 @@ import numpy as np
 
 from smac_hard_gym.engine.state import Commands
 from smac_hard_gym.opponents.api import Script, SideView
-from smac_hard_gym.smac.actions import decode_actions
 from smac_hard_gym.smac.features import SideFeatures, SmacOptions
+from smac_hard_gym.smac.kernels import check_decode_batch
 
 __all__ = ["PolicyScript", "as_policy", "is_policy_file"]
 
@@ -156,11 +156,13 @@ class PolicyScript(Script):
         if actions.shape != masks.shape[:2]:
             raise ValueError(f"policy {self.name!r} returned actions of shape {actions.shape}, expected "
                              f"{masks.shape[:2]} (battles, agents)")
-        actions = np.clip(actions, 0, feats.n_actions - 1)
-        unavailable = ~np.take_along_axis(masks, actions[..., None], axis=2)[..., 0]
-        if unavailable.any():  # a policy that ignores masks still plays legally: the agent's first legal action
-            actions[unavailable] = masks[unavailable].argmax(axis=1)
-        played = np.zeros((view.batch_size, feats.n_agents), dtype=np.int64)
-        played[rows] = actions
-        decode_actions(feats, view.state, played, commands, active)
-        self.last_action[rows] = actions
+        batch = view.batch_size
+        played = np.zeros((batch, feats.n_agents), dtype=np.int64)
+        played[rows] = np.clip(actions, 0, feats.n_actions - 1)
+        legal = np.ones((batch, feats.n_agents, feats.n_actions), dtype=bool)  # rows not active are not read
+        legal[rows] = masks
+        # The learner's way down: a policy that ignores masks still plays legally (an unavailable action becomes the
+        # agent's first legal one), decoded into this side's commands in one kernel call.
+        check_decode_batch(played, legal, active, True, np.zeros(batch, dtype=np.int64), view.state.x, view.state.y,
+                           commands.kind, commands.target, commands.x, commands.y, *feats.decode_args)
+        self.last_action[rows] = played[rows]

@@ -218,8 +218,8 @@ class TwoPlayerCore:
         self._stats = _OpponentStats()
         self._names = np.full(b, SELF_PLAY_NAME, dtype=object)  # opponent per battle, fixed for an episode
         self._name_ids = np.full(b, self._stats.name_id(SELF_PLAY_NAME), dtype=np.int64)  # its row in the stats
-        self._avail_cache: list[np.ndarray | None] = [None, None]  # each side's masks of the current state
-        self._encoded: list[tuple | None] = [None, None]  # each side's (masks, obs, state or None) of it
+        self._encoded: list[tuple | None] = [None, None]  # each side's (masks, obs, state or None) of the state
+        self._avail_cache: list[np.ndarray | None] = [None, None]  # its masks alone, when only they were asked for
         self._views: list[SideView | None] = [None, None]
         self._no_replaced = np.zeros(b, dtype=np.int64)
         self._no_restarts = np.zeros(b, dtype=bool)
@@ -343,7 +343,6 @@ class TwoPlayerCore:
                                 truncated, dead_red, dead_blue, avail, obs, global_state, *self._up_args)
         global_state = feats.finish_state(obs, global_state) if self.encode_state else None
         self._encoded[RED] = (avail, obs, global_state)
-        self._avail_cache[RED] = avail
         if n_ended:
             ended = terminated | truncated
             self._stats.record(self._name_ids[ended], outcome[ended], truncated[ended])
@@ -386,6 +385,8 @@ class TwoPlayerCore:
     def avail_actions(self, side: int = RED) -> np.ndarray:
         """bool ``(B, n, n_actions)``; computed once per state (treat as read-only)."""
         side = self._side(side)
+        if self._encoded[side] is not None:
+            return self._encoded[side][0]
         if self._avail_cache[side] is None:
             self._avail_cache[side] = available_actions(self.features[side], self.backend.state)
         return self._avail_cache[side]
@@ -420,7 +421,6 @@ class TwoPlayerCore:
             feats = self.features[side]
             avail, obs, state = feats.encode(self.backend.state, self.last_action[side], self.episode_step)
             self._encoded[side] = (avail, obs, state)
-            self._avail_cache[side] = avail
         return self._encoded[side]
 
     def visibility(self, side: int = RED) -> np.ndarray:
@@ -487,7 +487,6 @@ class TwoPlayerCore:
             array[rows] = new
             spliced.append(array)
         self._encoded[RED] = tuple(spliced)
-        self._avail_cache[RED] = spliced[0]
 
     def _check_open(self) -> None:
         if self._closed:

@@ -192,7 +192,7 @@ def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray |
     rows = feats.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
     if out is None:
         out = np.empty((len(rows), feats.n_agents, feats.n_actions), dtype=bool)
-    available_actions_batch(rows, state.x, state.y, state.alive, out, *feats._avail_args)
+    available_actions_batch(rows, state.x, state.y, state.alive, out, *feats.avail_args)
     return out
 
 

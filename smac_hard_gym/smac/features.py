@@ -297,10 +297,10 @@ class SideFeatures:
             frame=fk.pack(fk.FRAME, np.float64, centre_x=self.center[0], centre_y=self.center[1],
                           width=self.max_distance[0], height=self.max_distance[1]),
         )
-        self._avail_args = fk.bind(fk.available_actions_batch, self.constants)
-        self._obs_args = fk.bind(fk.observations_batch, self.constants)
-        self._state_args = fk.bind(fk.global_state_batch, self.constants)
-        self._encode_args = fk.bind(fk.encode_batch, self.constants)
+        self.avail_args = fk.bind(fk.available_actions_batch, self.constants)
+        self.obs_args = fk.bind(fk.observations_batch, self.constants)
+        self.state_args = fk.bind(fk.global_state_batch, self.constants)
+        self.encode_args = fk.bind(fk.encode_batch, self.constants)
         self.decode_args = fk.bind(fk.check_decode_batch, self.constants)
 
     def __repr__(self) -> str:
@@ -352,7 +352,7 @@ class SideFeatures:
         if out is None:
             out = np.empty((len(rows), self.n_agents, self.obs_size), dtype=np.float32)
         fk.observations_batch(rows, state.x, state.y, state.alive, state.health, state.shield, avail, last_action,
-                              episode_step, out, *self._obs_args)
+                              episode_step, out, *self.obs_args)
         return out
 
     def global_state(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
@@ -375,7 +375,7 @@ class SideFeatures:
         if out is None:
             out = np.empty((len(rows), self.state_size), dtype=np.float32)
         fk.global_state_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                              state.cooldown, last_action, episode_step, out, *self._state_args)
+                              state.cooldown, last_action, episode_step, out, *self.state_args)
         return out
 
     def encode(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
@@ -385,7 +385,7 @@ class SideFeatures:
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         avail, obs, global_state = self.outputs(len(rows), with_state=True)
         fk.encode_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                        state.cooldown, last_action, episode_step, avail, obs, global_state, *self._encode_args)
+                        state.cooldown, last_action, episode_step, avail, obs, global_state, *self.encode_args)
         return avail, obs, self.finish_state(obs, global_state)
 
     def outputs(self, batch: int, with_state: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
