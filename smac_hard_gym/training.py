@@ -198,23 +198,28 @@ def resolve_opponents(map_name: str, opponent: str) -> tuple[list[str], np.ndarr
     return list(names), np.full(len(names), 1.0 / len(names)) if probs is None else np.asarray(probs)
 
 
+def _evaluate_against(model: Any, map_name: str, opponent: Any, episodes: int, num_envs: int, seed: int,
+                      env_kwargs: dict[str, Any] | None) -> EvalResult:
+    """:func:`evaluate` on a fresh native vector env of ``map_name`` against one ``opponent``, closed afterwards."""
+    from smac_hard_gym.envs.vector import NativeVectorEnv
+
+    kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "map_name"}
+    venv = NativeVectorEnv(map_name, min(num_envs, episodes), autoreset_mode="SameStep", opponent=opponent, **kwargs)
+    try:
+        return evaluate(model, venv, episodes, seed=seed)
+    finally:
+        venv.close()
+
+
 def evaluate_scripts(model: Any, map_name: str, opponent: str, episodes: int, *, num_envs: int = 16,
                      seed: int = 0, env_kwargs: dict[str, Any] | None = None,
                      log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Evaluate ``model`` for ``episodes`` episodes against each script of ``opponent`` (see
     :func:`resolve_opponents`); the mixture's win rate is the weighted mean of the scripts' (its expectation)."""
-    from smac_hard_gym.envs.vector import NativeVectorEnv
-
     names, probs = resolve_opponents(map_name, opponent)
-    kwargs = dict(env_kwargs or {})
-    kwargs.pop("map_name", None)
     rows: dict[str, dict[str, float]] = {}
     for name in names:
-        venv = NativeVectorEnv(map_name, min(num_envs, episodes), autoreset_mode="SameStep", opponent=name, **kwargs)
-        try:
-            result = evaluate(model, venv, episodes, seed=seed)
-        finally:
-            venv.close()
+        result = _evaluate_against(model, map_name, name, episodes, num_envs, seed, env_kwargs)
         rows[name] = {"episodes": result.episodes, "wins": result.wins, "win_rate": result.win_rate,
                       "mean_return": result.mean_return, "mean_length": result.mean_length}
         if log is not None:
@@ -362,23 +367,16 @@ def league_win_rates(core: Any) -> dict[str, float]:
 def _evaluate_league(model: Any, league: Any, config: TrainConfig, core: Any) -> dict[str, Any]:
     """Win rate of ``model`` against each league member (``config.eval_episodes`` episodes each), with the
     member's drawing probability and its training games."""
-    from smac_hard_gym.envs.vector import NativeVectorEnv
     from smac_hard_gym.opponents.policy import PolicyScript
 
-    kwargs = config.env_kwargs()
-    map_name = kwargs.pop("map_name")
     played = core.stats()["opponents"]
     members = {}
     for member, prob in zip(league.scripts, league.probs, strict=True):
         # A fresh script per evaluation env: members keep per-battle memory sized to the training batch.
         opponent = PolicyScript(member.policy, member.name, member.options) if isinstance(member, PolicyScript) \
             else member.name
-        venv = NativeVectorEnv(map_name, min(config.eval_envs, config.eval_episodes), autoreset_mode="SameStep",
-                               opponent=opponent, **kwargs)
-        try:
-            result = evaluate(model, venv, config.eval_episodes, seed=config.seed + 2_000_003)
-        finally:
-            venv.close()
+        result = _evaluate_against(model, config.map_name, opponent, config.eval_episodes, config.eval_envs,
+                                   config.seed + 2_000_003, config.env_kwargs())
         members[member.name] = {"win_rate": result.win_rate, "prob": float(prob),
                                 "train_games": int(played.get(member.name, {}).get("games", 0))}
     return {"weighting": league.weighting, "members": members}
