@@ -18,7 +18,7 @@ from numba import njit, prange
 import smac_hard_gym.engine as engine_module
 from smac_hard_gym.engine import BattleEngine, Commands
 from smac_hard_gym.engine.batch_ops import count_alive
-from smac_hard_gym.engine.kernels import _separation, _sort_by_x
+from smac_hard_gym.engine.kernels import _separation, _sort_by_x, step_kernels_for
 from smac_hard_gym.engine.scheduling import fetch_add
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_MOVE, ORDER_HOLD, ORDER_IDLE, BattleState
 from smac_hard_gym.units import STATS, S, unit_index
@@ -34,7 +34,7 @@ def test_sort_by_x_orders_slots_by_position_then_slot():
         x = rng.choice([1.0, 2.5, 2.5, 3.0, 7.25], size=n) + rng.choice([0.0, 0.5], size=n)  # many ties
         by_x = rng.permutation(n).astype(np.int32)
         key = np.zeros(n)
-        _sort_by_x(by_x, key, x)
+        _sort_by_x(n, by_x, key, x)
         expected = np.lexsort((np.arange(n), x))
         assert by_x.tolist() == expected.tolist()
         assert key.tolist() == x[expected].tolist()
@@ -103,7 +103,7 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     got_x, got_y = x.copy(), y.copy()
     scratch_x, scratch_y = np.zeros(len(names)), np.zeros(len(names))
     n = len(names)
-    worst = _separation(np.zeros(n, np.int8), alive, got_x, got_y, scratch_x, scratch_y, order, np.zeros(n),
+    worst = _separation(n, np.zeros(n, np.int8), alive, got_x, got_y, scratch_x, scratch_y, order, np.zeros(n),
                         np.zeros(n), np.full(n, -1, np.int32), slot_stats, walk, by_x, key,
                         slot_stats[:, S["radius"]].max())
     np.testing.assert_allclose(got_x, expected_x, rtol=0, atol=1e-12)
@@ -123,7 +123,7 @@ def test_sweep_passes_clear_a_dense_crowd():
     alive, order = np.ones(n, dtype=bool), np.zeros(n, dtype=np.int8)
     by_x, key, scratch_x, scratch_y = np.arange(n, dtype=np.int32), np.zeros(n), np.zeros(n), np.zeros(n)
     for _ in range(400):
-        if _separation(np.zeros(n, np.int8), alive, x, y, scratch_x, scratch_y, order, np.zeros(n), np.zeros(n),
+        if _separation(n, np.zeros(n, np.int8), alive, x, y, scratch_x, scratch_y, order, np.zeros(n), np.zeros(n),
                        np.full(n, -1, np.int32), slot_stats, walk, by_x, key, 0.375) < 1e-6:
             break
     dist = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) + np.eye(n) * 10
@@ -166,6 +166,32 @@ def test_parallel_step_equals_serial_step_and_skips_inactive_battles(monkeypatch
         for name, p, s, old in zip(BattleState._fields, parallel.state, serial.state, before, strict=True):
             assert np.array_equal(p, s), (step, name)
             assert np.array_equal(p[~active], old[~active]), (step, name)
+
+
+
+def test_kernels_compiled_for_the_unit_count_step_exactly_as_the_generic_ones():
+    # MMM: medivac heals, marauder bonus damage, deaths within 40 random steps; 20 units per battle.
+    batch = 40
+    special = BattleEngine("MMM", batch_size=batch, specialize=True)
+    generic = BattleEngine("MMM", batch_size=batch, specialize=False)
+    assert special.specialized and not generic.specialized
+    rng = np.random.default_rng(11)
+    for step in range(40):
+        cmd = _random_commands(special, rng)
+        special.step(cmd)
+        generic.step(cmd)
+        for name, a, b in zip(BattleState._fields, special.state, generic.state, strict=True):
+            assert np.array_equal(a, b), (step, name)
+    assert (~special.state.alive).any()  # the comparison covered deaths
+
+
+def test_big_batches_specialize_by_default_and_bad_choices_are_named():
+    assert BattleEngine("3m", batch_size=engine_module.SPECIALIZE_MIN_BATCH).specialized
+    assert not BattleEngine("3m", batch_size=engine_module.SPECIALIZE_MIN_BATCH - 1).specialized
+    with pytest.raises(ValueError, match="specialize must be True, False or None.*'yes'"):
+        BattleEngine("3m", specialize="yes")
+    with pytest.raises(ValueError, match="n_units must be a positive int.*0"):
+        step_kernels_for(0)
 
 
 @njit(parallel=True)

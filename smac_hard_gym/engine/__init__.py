@@ -20,7 +20,7 @@ if os.environ.get("NUMBA_THREADING_LAYER", "workqueue") == "workqueue":
     numba.config.THREADING_LAYER = "workqueue"
 
 from smac_hard_gym.engine.batch_ops import count_alive, reset_battles
-from smac_hard_gym.engine.kernels import step_batch, step_batch_serial
+from smac_hard_gym.engine.kernels import step_batch, step_batch_serial, step_kernels_for
 from smac_hard_gym.engine.scenario import Layout, build_layout
 from smac_hard_gym.engine.state import (
     BLUE,
@@ -42,6 +42,9 @@ from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.units import STATS, UNITS
 
 PARALLEL_MIN_BATCH = 16  # below this many battles a step runs on the calling thread
+# From this many battles on, the engine steps with kernels compiled for the map's unit count (``specialize``): about
+# 10% faster on 3m, for one compilation of about 15 s per unit count (then cached on disk).
+SPECIALIZE_MIN_BATCH = 256
 # SC2 delays every attack by a random -0.0625 to +0.125 game seconds (weapon data RandomDelayMin/Max; SMAX draws the
 # same range): -1 to +2 game loops.
 SC2_COOLDOWN_JITTER = (-1.0, 2.0)
@@ -67,12 +70,19 @@ class BattleEngine:
     The state is a :class:`BattleState` of arrays shaped ``(batch_size, n_units)``; red (learner) slots come first.
     ``step(commands)`` applies per-unit commands and advances ``step_mul`` game loops (8 = one SMAC step = half a
     Normal-speed second). Everything is deterministic: no random draw happens inside the engine.
+
+    ``specialize`` steps with kernels compiled for this map's number of units (same results, faster; the first use
+    of a unit count compiles for about 15 s). None (default): only from ``SPECIALIZE_MIN_BATCH`` battles on.
     """
 
     def __init__(self, map_spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8,
-                 cooldown_jitter: tuple[float, float] | None = SC2_COOLDOWN_JITTER, seed: int = 0) -> None:
+                 cooldown_jitter: tuple[float, float] | None = SC2_COOLDOWN_JITTER, seed: int = 0,
+                 specialize: bool | None = None) -> None:
         if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
             raise ValueError(f"batch_size must be a positive int, got {batch_size!r}")
+        if specialize is not None and not isinstance(specialize, bool):
+            raise ValueError(f"specialize must be True, False or None (from {SPECIALIZE_MIN_BATCH} battles on), "
+                             f"got {specialize!r}")
         if not isinstance(step_mul, (int, np.integer)) or step_mul < 1:
             raise ValueError(f"step_mul must be a positive int (game loops per step), got {step_mul!r}")
         self.spec: MapSpec = load_map(map_spec)
@@ -99,8 +109,13 @@ class BattleEngine:
         self._next_battle = np.zeros(1, dtype=np.int64)  # the parallel kernel's shared work counter
         self.commands = Commands.empty(self.batch_size, self.n_units)
         self._all_active = np.ones(self.batch_size, dtype=np.bool_)
+        if specialize is None:
+            specialize = self.batch_size >= SPECIALIZE_MIN_BATCH
+        self.specialized = specialize
+        self._step_batch, self._step_batch_serial = (step_kernels_for(self.n_units) if specialize
+                                                     else (step_batch, step_batch_serial))
         self._direct_commands: Commands | None = None  # see _take_direct_serial
-        self._direct_serial = step_batch_serial
+        self._direct_serial = self._step_batch_serial
         lo, hi = (0.0, 0.0) if cooldown_jitter is None else (float(cooldown_jitter[0]), float(cooldown_jitter[1]))
         if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi and lo > -8):
             raise ValueError(f"cooldown_jitter must be (low, high) game loops with -8 < low <= high, or None; "
@@ -154,11 +169,11 @@ class BattleEngine:
                 t.open_field, self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter,
                 self._by_x, self._sort_key, self._engaged, self._x0, self._y0)
         if self.batch_size >= PARALLEL_MIN_BATCH:
-            step_batch(*args, numba.get_num_threads(), self._next_battle)
+            self._step_batch(*args, numba.get_num_threads(), self._next_battle)
         elif cmd is self._direct_commands and act.ndim == 1:
             self._direct_serial(*args)
         else:
-            step_batch_serial(*args)
+            self._step_batch_serial(*args)
             self._take_direct_serial(cmd, args)
 
     def _take_direct_serial(self, cmd: Commands, args: tuple) -> None:
@@ -169,10 +184,11 @@ class BattleEngine:
         arrays and ``active`` (a contiguous bool vector, checked per call); once ``cmd``'s arrays have been typed
         here, its steps skip the dispatcher. The overload is the one the dispatcher itself chose for these types.
         """
-        overloads = getattr(step_batch_serial, "overloads", None)  # absent without the JIT (NUMBA_DISABLE_JIT)
+        kernel = self._step_batch_serial
+        overloads = getattr(kernel, "overloads", None)  # absent without the JIT (NUMBA_DISABLE_JIT)
         if overloads is None or self._direct_commands is not None:
             return
-        key = tuple(step_batch_serial.typeof_pyval(a) for a in args)
+        key = tuple(kernel.typeof_pyval(a) for a in args)
         compiled = overloads.get(key)
         if compiled is not None:
             self._direct_commands, self._direct_serial = cmd, compiled.entry_point
