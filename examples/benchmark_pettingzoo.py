@@ -88,10 +88,12 @@ def main(argv: list[str] | None = None) -> dict:
     smac.reset(seed=args.seed)
     pz = parallel_env(args.map, opponent=args.opponent)
     pz.reset(seed=args.seed)
+    pz_state = parallel_env(args.map, opponent=args.opponent)  # its own env: state() changes what steps encode
+    pz_state.reset(seed=args.seed)
     loops = {
         "smac": lambda s, rng: smac_loop(smac, s, rng),
         "pz": lambda s, rng: pz_loop(pz, s, rng, False),
-        "pz+state": lambda s, rng: pz_loop(pz, s, rng, True),
+        "pz+state": lambda s, rng: pz_loop(pz_state, s, rng, True),
     }
     rng = np.random.default_rng(args.seed)
     for loop in loops.values():  # warm-up: compiled kernels load, caches fill
@@ -117,6 +119,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(json.dumps(result, indent=1))
     smac.close()
     pz.close()
+    pz_state.close()
     return result
 
 

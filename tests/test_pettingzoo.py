@@ -121,6 +121,26 @@ def test_same_trajectory_as_starcraft2env(teams):
     assert all(ended)
 
 
+
+@pytest.mark.parametrize("teams", ["red", "both"])
+def test_state_first_asked_mid_episode_is_the_reference_state(teams):
+    # Steps skip the state until state() is first called; a first call after some steps must still be exact.
+    env = parallel_env("MMM", teams=teams, opponent="default") if teams == "red" else parallel_env("MMM", teams=teams)
+    ref = StarCraft2Env("MMM", opponent="default") if teams == "red" else StarCraft2Env("MMM", mode="self-play")
+    sides = range(2 if teams == "both" else 1)
+    observations, _ = env.reset(seed=4)
+    ref.reset(seed=4)
+    rng = np.random.default_rng(4)
+    for step in range(12):
+        if step in (7, 8, 11):  # the first call (not encoded with the step), then encoded ones
+            np.testing.assert_array_equal(env.state(), np.concatenate([ref.get_state(p) for p in sides]))
+        actions = masked_actions(env, observations, rng)
+        joint = [[actions.get(f"{('red', 'blue')[p]}_{i}", 0) for i in range(len(ref.get_obs(p)))] for p in sides]
+        ref.step(joint if teams == "both" else joint[0])
+        observations, *_ = env.step(actions)
+    assert env.agents  # still mid-episode
+
+
 def test_dead_agents_get_a_final_step_then_leave():
     env = parallel_env("8m", teams="both")
     rng = np.random.default_rng(0)
