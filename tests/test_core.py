@@ -188,3 +188,28 @@ def test_blue_actions_are_validated_in_self_play():
     result = core.step([[1, 1, 1]], [[4, 5, 2]])
     assert core.last_action[BLUE][0].tolist() == [4, 5, 2]
     assert result.stepped.all()
+
+
+def test_odd_action_arrays_step_exactly_as_plain_ones():
+    # Once compiled, a step's kernels are called past numba's dispatcher for plain int64 C-contiguous actions. Actions
+    # of another layout (strided, Fortran order) must still be typed by the dispatcher and play the same way.
+    def play(odd: bool) -> list[np.ndarray]:
+        core = TwoPlayerCore("MMM", 2, mode="self-play")
+        core.reset(seed=3)
+        rng, seen = np.random.default_rng(3), []
+        for step in range(30):
+            acts = []
+            for side in (RED, BLUE):
+                avail = core.avail_actions(side)
+                acts.append((rng.random(avail.shape) + avail).argmax(axis=2).astype(np.int64))
+            red, blue = acts
+            checked = step % 2 == 0
+            if odd and step % 3 == 1:  # in range and int64 as checked=True asks, but of another array type
+                red = np.repeat(red, 2, axis=1)[:, ::2] if step % 2 else np.asfortranarray(red)
+                checked = True
+            result = core.step(red, blue, checked=checked)
+            seen += [result.reward.copy(), result.obs.copy(), result.avail.copy(), core.state.x.copy()]
+        return seen
+
+    for plain, odd in zip(play(False), play(True), strict=True):
+        np.testing.assert_array_equal(plain, odd)

@@ -146,6 +146,31 @@ class _OpponentStats:
         return totals
 
 
+
+_INT64 = np.dtype(np.int64)
+
+
+def _plain(actions: np.ndarray) -> bool:
+    """Actions of the one type the step's direct kernel calls were compiled for: a writable, aligned, C-contiguous
+    int64 (B, n) array (what validation and every env layer produce)."""
+    if type(actions) is not np.ndarray or actions.dtype is not _INT64 or actions.ndim != 2:
+        return False
+    flags = actions.flags
+    return flags.c_contiguous and flags.writeable and flags.aligned
+
+
+def _compiled(kernel: Any, args: tuple) -> Any:
+    """The overload numba's dispatcher just ran for ``args``, as a function that takes the same argument types without
+    typing each one again (``finish_encode`` takes 55 arguments: 1.6 us of a 36 us B=1 step on 3m); None without
+    the JIT. Only for a call site whose argument types cannot change: every array there is the core's own,
+    allocated the same way each step, except the actions, which the caller checks with ``_plain``."""
+    overloads = getattr(kernel, "overloads", None)  # absent under NUMBA_DISABLE_JIT
+    if overloads is None:
+        return None
+    compiled = overloads.get(tuple(kernel.typeof_pyval(a) for a in args))
+    return None if compiled is None else compiled.entry_point
+
+
 class TwoPlayerCore:
     """B battles of one map with SMAC's interface for both sides; see the module docstring for the API."""
 
@@ -225,6 +250,10 @@ class TwoPlayerCore:
         self._no_restarts = np.zeros(b, dtype=bool)
         self._no_actions = np.zeros((0, self.n_blue), dtype=np.int64)  # blue's actions when a script plays it
         self._no_red_actions = np.zeros((0, self.n_red), dtype=np.int64)  # red's, when red_script plays it
+        # The two kernels of a step called past numba's dispatcher once compiled (see _compiled): the way up, and
+        # each side's way down.
+        self._direct_up: Any = None
+        self._direct_down: list[Any] = [None, None]
         self._error: BaseException | None = None
         self._closed = False
         self.reset(seed=seed)
@@ -337,10 +366,17 @@ class TwoPlayerCore:
         dead_red, dead_blue = np.empty(size, np.int64), np.empty(size, np.int64)
         feats = self.features[RED]
         avail, obs, global_state = feats.outputs(size, self.encode_state)
-        n_ended = finish_encode(prev_hs, prev_alive, state.x, state.y, state.alive, state.health, state.shield,
-                                state.energy, state.cooldown, active, restarted, red, blue, self.last_action[RED],
-                                self.last_action[BLUE], self.episode_step, self.done, outcome, reward, terminated,
-                                truncated, dead_red, dead_blue, avail, obs, global_state, *self._up_args)
+        args = (prev_hs, prev_alive, state.x, state.y, state.alive, state.health, state.shield, state.energy,
+                state.cooldown, active, restarted, red, blue, self.last_action[RED], self.last_action[BLUE],
+                self.episode_step, self.done, outcome, reward, terminated, truncated, dead_red, dead_blue, avail, obs,
+                global_state, *self._up_args)
+        plain = _plain(red) and (blue is self._no_actions or _plain(blue))
+        if plain and self._direct_up is not None:
+            n_ended = self._direct_up(*args)
+        else:
+            n_ended = finish_encode(*args)
+            if plain:
+                self._direct_up = _compiled(finish_encode, args)
         global_state = feats.finish_state(obs, global_state) if self.encode_state else None
         self._encoded[RED] = (avail, obs, global_state)
         if n_ended:
@@ -367,8 +403,15 @@ class TwoPlayerCore:
                                                         SIDE_NAMES[side])
         avail = self.avail_actions(side)
         state, cmd = self.backend.state, self.commands
-        bad = check_decode_batch(acts, avail, active, replace, replaced, state.x, state.y, cmd.kind, cmd.target,
-                                 cmd.x, cmd.y, *feats.decode_args)
+        args = (acts, avail, active, bool(replace), replaced, state.x, state.y, cmd.kind, cmd.target, cmd.x, cmd.y,
+                *feats.decode_args)
+        plain = _plain(acts)
+        if plain and self._direct_down[side] is not None:
+            bad = self._direct_down[side](*args)
+        else:
+            bad = check_decode_batch(*args)
+            if plain:
+                self._direct_down[side] = _compiled(check_decode_batch, args)
         if bad >= 0:
             raise_unavailable(feats, acts, avail, bad, hint)
         return acts
