@@ -70,6 +70,9 @@ def test_train_and_eval_commands_end_to_end(tmp_path, capsys):
     assert 0.0 < float(rows[-1]["env_fraction"]) < 1.0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["timesteps"] == 2048 and summary["map"] == "3m"
+    from torch.distributions import Distribution
+
+    assert Distribution._validate_args  # switched off while training only (torch's default is on)
 
     code = main(["eval", "--model", str(out / "model.zip"), "--opponent", "all", "--episodes", "2",
                  "--num-envs", "2"])
