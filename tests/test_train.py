@@ -165,3 +165,5 @@ def test_kernel_cache_is_warm_once_an_env_has_stepped():
     env.step(np.ones((16, 3), dtype=np.int64))
     env.close()
     assert kernels_cached() is True  # compiled (or loaded) in this process, so on disk now
+    # Kernels compiled per unit count share numba's index with the generic ones: a count never compiled is not cached.
+    assert kernels_cached(997) is False

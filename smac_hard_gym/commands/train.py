@@ -89,9 +89,13 @@ def run(args: argparse.Namespace) -> int:
     for key, value in asdict(config).items():
         print(f"  {key:<15} {value}")
     print(f"  {'eval_interval':<15} {config.eval_interval}")
+    from smac_hard_gym.engine import SPECIALIZE_MIN_BATCH
     from smac_hard_gym.kernel_cache import COMPILING_NOTICE, kernels_cached
+    from smac_hard_gym.maps import load_map
 
-    if not kernels_cached():
+    battles = config.num_envs // config.ray_actors if config.ray else config.num_envs
+    spec = load_map(config.map_name)
+    if not kernels_cached(spec.n_red + spec.n_blue if battles >= SPECIALIZE_MIN_BATCH else None):
         print(COMPILING_NOTICE, flush=True)
     summary = train(config)
     if summary["interrupted"]:
