@@ -11,6 +11,11 @@ package); ``smac-hard-gym solutions`` prints the table; ``tests/test_known_solut
   (beats ``smac``). SMAC-HARD's focus-fire zealot (``weakest``: an explicit attack order) never switches: the
   runner is cornered (SMAC-HARD paper, section 6.1). In the **kiting** variant the chased marine keeps running, in a
   circle round its partner, which stands and shoots: that beats the focus-fire zealot too.
+- 2s_vs_1sc, **tank swap** (SMAC's stalker micro against the static crawler): both stalkers shoot; the one the
+  spine crawler is shooting walks out of its range once its shields are gone and its partner has more left, so the
+  crawler, which cannot follow, turns on the partner, and the first one's shields come back. That beats ``smac``
+  (and ``base``, which gives no order on this map); standing, the two lose. SMAC-HARD's ``spine_weaker`` shoots
+  the weaker stalker within 8.7 by explicit order, so the one that walked out is shot again as it returns.
 - 3s_vs_3z / 3s_vs_4z, **stalker kiting** (the paper's section 6.2): attack when the weapon is ready, step back
   from the nearest zealot otherwise; stalkers are faster than zealots, so the zealots rarely land a blow. The same
   stalkers **standing** their ground lose the melee.
@@ -41,8 +46,8 @@ from smac_hard_gym.opponents.helpers import (
     retreat_points,
 )
 
-__all__ = ["AlternatingAggro", "StalkerKite", "HoldChoke", "OpenFight", "HideThenPickOff", "Claim", "Verdict",
-           "CLAIMS", "CONTROLLERS", "claims_for_map", "make_controller"]
+__all__ = ["AlternatingAggro", "TankSwap", "StalkerKite", "HoldChoke", "OpenFight", "HideThenPickOff", "Claim",
+           "Verdict", "CLAIMS", "CONTROLLERS", "claims_for_map", "make_controller"]
 
 # A weapon counts as ready when its cooldown ends within half an env step (4 of 8 game loops): ordering the attack
 # then costs at most half a step of standing, stepping back would delay the shot by up to a whole step.
@@ -155,6 +160,27 @@ class StalkerKite(BatchScript):
             threatened = ((frame.edge <= 2.0) & frame.enemy_alive[:, None, :]).any(axis=2)
             _step_back(frame, orders, alive & ~ready & threatened, 2.0)
 
+
+
+class TankSwap(BatchScript):
+    """2s_vs_1sc: both stalkers focus the crawler; the one it is shooting steps back out of its range (7, plus a
+    margin) once its shields are gone and its partner has at least ``margin`` more health + shields, and returns
+    when that no longer holds (the crawler has turned on the partner, whose shields then go)."""
+
+    name = "tank_swap"
+    description = "the stalker being shot leaves the crawler's range once its shields are gone; the other tanks"
+    margin = 20.0
+    out_of_range = 7.8  # edge distance: the crawler's range 7 and a little
+
+    def plan(self, frame: Frame, orders: Orders) -> None:
+        alive = frame.own_alive
+        hp = np.where(alive, frame.own_hp, -1.0)
+        others = alive[:, None, :] & ~np.eye(frame.n_own, dtype=bool)[None]
+        partner_hp = np.where(others, hp[:, None, :], -1.0).max(axis=2)  # (R, n): the best-off other unit's
+        runner = alive & _chased(frame) & (frame.own_shield < 1.0) & (partner_hp >= hp + self.margin)
+        in_range = ((frame.edge <= self.out_of_range) & frame.enemy_alive[:, None, :]).any(axis=2)
+        orders.attack(alive, _focus(frame))
+        _step_back(frame, orders, runner & in_range, 2.0)
 
 # corridor: the neck (cells 12..13, 12..13) meets the lower-left room only at the corner point (12, 12). Two zealots
 # standing just inside the room on either side of that corner seal it: a zergling can come through only there, one
@@ -322,6 +348,7 @@ def make_controller(name: str) -> BatchScript:
 _FACTORIES: dict[str, Callable[[], BatchScript]] = {
     "alternating_aggro": lambda: AlternatingAggro(kite=False),
     "kite_aggro": lambda: AlternatingAggro(kite=True),
+    "tank_swap": TankSwap,
     "stalker_kite": lambda: StalkerKite(kite=True),
     "stalker_stand": lambda: StalkerKite(kite=False),
     "hold_choke": HoldChoke,
@@ -335,6 +362,12 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("2m_vs_1z", "alternating_aggro", "weakest", "a focus-fire zealot never switches: the runner is caught",
           at_most=0.2),
     Claim("2m_vs_1z", "kite_aggro", "weakest", "the chased marine kites while the other shoots", at_least=0.8),
+    Claim("2s_vs_1sc", "tank_swap", "smac", "the crawler cannot follow, so it turns on the stalker left in range",
+          at_least=0.8),
+    Claim("2s_vs_1sc", "stalker_stand", "smac", "standing, the crawler kills one stalker, then the other",
+          at_most=0.2),
+    Claim("2s_vs_1sc", "tank_swap", "spine_weaker", "a crawler ordered onto the weaker stalker shoots it again as it "
+          "returns", at_most=0.2),
     Claim("3s_vs_3z", "stalker_kite", "smac", "stalkers outrun zealots: shoot, step back", at_least=0.8),
     Claim("3s_vs_3z", "stalker_stand", "smac", "standing stalkers lose the melee to zealots", at_most=0.2),
     Claim("3s_vs_4z", "stalker_kite", "smac", "kiting beats four zealots", at_least=0.8),
