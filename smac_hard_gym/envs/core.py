@@ -146,7 +146,6 @@ class _OpponentStats:
         return totals
 
 
-
 _INT64 = np.dtype(np.int64)
 
 
