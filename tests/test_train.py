@@ -52,10 +52,18 @@ def test_opponent_sets_for_evaluation():
 
 
 def test_train_and_eval_commands_end_to_end(tmp_path, capsys):
+    from torch.distributions import Distribution
+
     out = tmp_path / "run"
-    code = main(["train", "--map", "3m", "--opponent", "default", "--timesteps", "2048", "--num-envs", "4",
-                 "--n-steps", "64", "--batch-size", "128", "--epochs", "2", "--eval-every", "1024",
-                 "--eval-episodes", "4", "--seed", "3", "--out", str(out), "--no-progress"])
+    validate = Distribution._validate_args  # another library may have switched it off already
+    Distribution.set_default_validate_args(True)
+    try:
+        code = main(["train", "--map", "3m", "--opponent", "default", "--timesteps", "2048", "--num-envs", "4",
+                     "--n-steps", "64", "--batch-size", "128", "--epochs", "2", "--eval-every", "1024",
+                     "--eval-episodes", "4", "--seed", "3", "--out", str(out), "--no-progress"])
+        assert Distribution._validate_args  # switched off while training only
+    finally:
+        Distribution.set_default_validate_args(validate)
     assert code == 0
     printed = capsys.readouterr().out
     assert printed.startswith("config:") and "map_name        3m" in printed
@@ -70,9 +78,6 @@ def test_train_and_eval_commands_end_to_end(tmp_path, capsys):
     assert 0.0 < float(rows[-1]["env_fraction"]) < 1.0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["timesteps"] == 2048 and summary["map"] == "3m"
-    from torch.distributions import Distribution
-
-    assert Distribution._validate_args  # switched off while training only (torch's default is on)
 
     code = main(["eval", "--model", str(out / "model.zip"), "--opponent", "all", "--episodes", "2",
                  "--num-envs", "2"])
