@@ -43,8 +43,9 @@ from smac_hard_gym.units import STATS, UNITS
 
 PARALLEL_MIN_BATCH = 16  # below this many battles a step runs on the calling thread
 # From this many battles on, the engine steps with kernels compiled for the map's unit count (``specialize``): about
-# 10% faster on 3m, for one compilation of about 15 s per unit count (then cached on disk).
-SPECIALIZE_MIN_BATCH = 256
+# 10% faster on 3m, for one compilation of about 90 s per unit count (then cached on disk): worth it for long runs of
+# big batches only.
+SPECIALIZE_MIN_BATCH = 1024
 # SC2 delays every attack by a random -0.0625 to +0.125 game seconds (weapon data RandomDelayMin/Max; SMAX draws the
 # same range): -1 to +2 game loops.
 SC2_COOLDOWN_JITTER = (-1.0, 2.0)
@@ -72,7 +73,7 @@ class BattleEngine:
     Normal-speed second). Everything is deterministic: no random draw happens inside the engine.
 
     ``specialize`` steps with kernels compiled for this map's number of units (same results, faster; the first use
-    of a unit count compiles for about 15 s). None (default): only from ``SPECIALIZE_MIN_BATCH`` battles on.
+    of a unit count compiles for about 90 s). None (default): only from ``SPECIALIZE_MIN_BATCH`` battles on.
     """
 
     def __init__(self, map_spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8,

@@ -836,8 +836,9 @@ def step_kernels_for(n_units: int) -> tuple[Any, Any]:
     """``(step_batch, step_batch_serial)`` compiled for battles of exactly ``n_units`` units.
 
     With the count fixed at compile time LLVM unrolls the loops over units and drops their bounds: 3m at 4096
-    battles steps about 10% faster. The price is a compilation per unit count (about 15 s, once: numba caches it on
-    disk like every kernel), so the engine takes these for big batches only (``BattleEngine``'s ``specialize``).
+    battles steps about 10% faster. The price is a compilation per unit count (about 90 s on 2 cores, once: numba
+    caches it on disk like every kernel), so the engine takes these for big batches only (``BattleEngine``'s
+    ``specialize``).
     """
     if isinstance(n_units, bool) or not isinstance(n_units, int) or n_units < 1:
         raise ValueError(f"n_units must be a positive int (units per battle), got {n_units!r}")
