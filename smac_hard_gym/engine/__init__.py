@@ -20,6 +20,7 @@ if os.environ.get("NUMBA_THREADING_LAYER", "workqueue") == "workqueue":
     numba.config.THREADING_LAYER = "workqueue"
 
 from smac_hard_gym.engine.batch_ops import count_alive, reset_battles
+from smac_hard_gym.engine.direct import compiled_entry
 from smac_hard_gym.engine.kernels import step_batch, step_batch_serial, step_kernels_for
 from smac_hard_gym.engine.scenario import Layout, build_layout
 from smac_hard_gym.engine.state import (
@@ -185,14 +186,11 @@ class BattleEngine:
         arrays and ``active`` (a contiguous bool vector, checked per call); once ``cmd``'s arrays have been typed
         here, its steps skip the dispatcher. The overload is the one the dispatcher itself chose for these types.
         """
-        kernel = self._step_batch_serial
-        overloads = getattr(kernel, "overloads", None)  # absent without the JIT (NUMBA_DISABLE_JIT)
-        if overloads is None or self._direct_commands is not None:
+        if self._direct_commands is not None:
             return
-        key = tuple(kernel.typeof_pyval(a) for a in args)
-        compiled = overloads.get(key)
-        if compiled is not None:
-            self._direct_commands, self._direct_serial = cmd, compiled.entry_point
+        entry = compiled_entry(self._step_batch_serial, args)
+        if entry is not None:
+            self._direct_commands, self._direct_serial = cmd, entry
 
     def alive_counts(self) -> tuple[np.ndarray, np.ndarray]:
         """Alive units per battle: (red, blue), each shaped (B,)."""

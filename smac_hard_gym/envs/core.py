@@ -65,6 +65,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from smac_hard_gym.backend import BACKENDS, Backend, make_backend
+from smac_hard_gym.engine.direct import compiled_entry
 from smac_hard_gym.engine.state import BLUE, RED, Commands
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents import Script, SideView, make_opponent
@@ -158,16 +159,22 @@ def _plain(actions: np.ndarray) -> bool:
     return flags.c_contiguous and flags.writeable and flags.aligned
 
 
-def _compiled(kernel: Any, args: tuple) -> Any:
-    """The overload numba's dispatcher just ran for ``args``, as a function that takes the same argument types without
-    typing each one again (``finish_encode`` takes 55 arguments: 1.6 us of a 36 us B=1 step on 3m); None without
-    the JIT. Only for a call site whose argument types cannot change: every array there is the core's own,
-    allocated the same way each step, except the actions, which the caller checks with ``_plain``."""
-    overloads = getattr(kernel, "overloads", None)  # absent under NUMBA_DISABLE_JIT
-    if overloads is None:
-        return None
-    compiled = overloads.get(tuple(kernel.typeof_pyval(a) for a in args))
-    return None if compiled is None else compiled.entry_point
+class _DirectKernel:
+    """One of a step's kernels, called past numba's dispatcher (``compiled_entry``) once a call with ``plain``
+    actions has compiled it. Every other argument at the core's call sites is the core's own, allocated the same
+    way each step; other actions go through the dispatcher."""
+
+    def __init__(self, kernel: Any) -> None:
+        self.kernel = kernel
+        self.entry: Any = None
+
+    def __call__(self, plain: bool, *args: Any) -> Any:
+        if plain and self.entry is not None:
+            return self.entry(*args)
+        result = self.kernel(*args)
+        if plain:
+            self.entry = compiled_entry(self.kernel, args)
+        return result
 
 
 class TwoPlayerCore:
@@ -249,10 +256,9 @@ class TwoPlayerCore:
         self._no_restarts = np.zeros(b, dtype=bool)
         self._no_actions = np.zeros((0, self.n_blue), dtype=np.int64)  # blue's actions when a script plays it
         self._no_red_actions = np.zeros((0, self.n_red), dtype=np.int64)  # red's, when red_script plays it
-        # The two kernels of a step called past numba's dispatcher once compiled (see _compiled): the way up, and
-        # each side's way down.
-        self._direct_up: Any = None
-        self._direct_down: list[Any] = [None, None]
+        # The way up, and each side's way down, called past numba's dispatcher once compiled.
+        self._finish_encode = _DirectKernel(finish_encode)
+        self._check_decode = (_DirectKernel(check_decode_batch), _DirectKernel(check_decode_batch))
         self._error: BaseException | None = None
         self._closed = False
         self.reset(seed=seed)
@@ -369,13 +375,7 @@ class TwoPlayerCore:
                 state.cooldown, active, restarted, red, blue, self.last_action[RED], self.last_action[BLUE],
                 self.episode_step, self.done, outcome, reward, terminated, truncated, dead_red, dead_blue, avail, obs,
                 global_state, *self._up_args)
-        plain = _plain(red) and (blue is self._no_actions or _plain(blue))
-        if plain and self._direct_up is not None:
-            n_ended = self._direct_up(*args)
-        else:
-            n_ended = finish_encode(*args)
-            if plain:
-                self._direct_up = _compiled(finish_encode, args)
+        n_ended = self._finish_encode(_plain(red) and (blue is self._no_actions or _plain(blue)), *args)
         global_state = feats.finish_state(obs, global_state) if self.encode_state else None
         self._encoded[RED] = (avail, obs, global_state)
         if n_ended:
@@ -404,13 +404,7 @@ class TwoPlayerCore:
         state, cmd = self.backend.state, self.commands
         args = (acts, avail, active, bool(replace), replaced, state.x, state.y, cmd.kind, cmd.target, cmd.x, cmd.y,
                 *feats.decode_args)
-        plain = _plain(acts)
-        if plain and self._direct_down[side] is not None:
-            bad = self._direct_down[side](*args)
-        else:
-            bad = check_decode_batch(*args)
-            if plain:
-                self._direct_down[side] = _compiled(check_decode_batch, args)
+        bad = self._check_decode[side](_plain(acts), *args)
         if bad >= 0:
             raise_unavailable(feats, acts, avail, bad, hint)
         return acts

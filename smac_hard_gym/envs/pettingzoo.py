@@ -298,12 +298,12 @@ class SMACHardParallelEnv(RendersOneBattle, ParallelEnv):
 
     def state(self) -> np.ndarray:
         """The global state (float32, ``state_space.shape``): red's, then blue's with ``teams="both"``."""
-        # Steps skip encoding red's state until someone asks for it (4% of a B=1 step on 3m); from the first call on
-        # (a centralised critic asks every step) it comes with each step's encoding. This call reads it either way.
+        # Steps skip encoding red's state until someone asks for it (about 1% of a B=1 step on 3m); from the first
+        # call on (a centralised critic asks every step) it comes with each step's encoding. This call reads it
+        # either way (global_state computes it when this step's encoding left it out).
         self.core.encode_state = True
         if len(self._sides) == 1:
-            encoded = self.core.encode(RED)[2]  # None on that first call
-            return self.core.global_state(RED)[0] if encoded is None else encoded[0].copy()
+            return self.core.global_state(RED)[0]
         return np.concatenate([self.core.global_state(RED)[0], self.core.global_state(BLUE)[0]])
 
     def team_state(self, team: str) -> np.ndarray:
