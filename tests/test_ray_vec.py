@@ -50,6 +50,20 @@ def _gone(names):
     return True
 
 
+def _kill_and_wait(actor, timeout=60.0):
+    """Kill an actor and wait until Ray reports it dead: ``ray.kill`` only asks, and a call sent at once can still be
+    answered by the dying actor (the race that made the step after the kill succeed now and then)."""
+    ray.kill(actor)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            ray.get(actor.pid.remote(), timeout=timeout)
+        except ray.exceptions.RayActorError:
+            return
+        time.sleep(0.05)
+    raise TimeoutError(f"the killed actor still answered after {timeout:g} s")
+
+
 def _legal_actions(env, rng, n, agents, n_actions):
     masks = env.action_masks().reshape(n, agents, n_actions)
     return np.array([[rng.choice(np.flatnonzero(m)) for m in row] for row in masks])
@@ -110,7 +124,7 @@ def test_killing_an_actor_mid_run_recovers_within_10_s_with_its_battles_flagged(
         for _ in range(3):
             env.step(_legal_actions(env, rng, 4, 3, 9))
         killed = env.actor_names[1]
-        ray.kill(env.actors[1])
+        _kill_and_wait(env.actors[1])
         start = time.monotonic()
         obs, reward, terminated, truncated, infos = env.step(_legal_actions(env, rng, 4, 3, 9))
         elapsed = time.monotonic() - start
@@ -133,7 +147,7 @@ def test_killing_an_actor_with_raise_closes_everything_and_names_it():
     env = make_ray_vec("3m", 2, 1, autoreset_mode="SameStep", opponent="base")
     names = env.actor_names
     env.reset(seed=0)
-    ray.kill(env.actors[0])
+    _kill_and_wait(env.actors[0])
     with pytest.raises(WorkerError, match=r"worker 0 \(battles 0..0\): died during step"):
         env.step(np.ones((2, 3), dtype=np.int64))
     assert env.closed and _gone(names)
