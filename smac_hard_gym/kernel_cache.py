@@ -36,7 +36,7 @@ def kernels_cached(n_units: int | None = None) -> bool | None:
             values = hashlib.sha256(dumps(tuple(cell.cell_contents for cell in closure))).hexdigest()
             return any(key[2][1] == values for key in index)
 
-        engine = cached(kernels.step_batch) or cached(kernels.step_batch_serial)
+        engine = cached(kernels.step_batch) or cached(kernels.step_battles)
         if n_units is not None:
             engine = cached(kernels.step_kernels_for(n_units)[0])
         return engine and cached(feature_kernels.available_actions_batch) and cached(feature_kernels.finish_encode)

@@ -21,7 +21,7 @@ if os.environ.get("NUMBA_THREADING_LAYER", "workqueue") == "workqueue":
 
 from smac_hard_gym.engine.batch_ops import count_alive, reset_battles
 from smac_hard_gym.engine.direct import compiled_entry
-from smac_hard_gym.engine.kernels import step_batch, step_batch_serial, step_kernels_for
+from smac_hard_gym.engine.kernels import step_batch, step_battles, step_kernels_for
 from smac_hard_gym.engine.scenario import Layout, build_layout
 from smac_hard_gym.engine.state import (
     BLUE,
@@ -114,10 +114,10 @@ class BattleEngine:
         if specialize is None:
             specialize = self.batch_size >= SPECIALIZE_MIN_BATCH
         self.specialized = specialize
-        self._step_batch, self._step_batch_serial = (step_kernels_for(self.n_units) if specialize
-                                                     else (step_batch, step_batch_serial))
+        self._step_batch, self._step_battles = (step_kernels_for(self.n_units) if specialize
+                                                else (step_batch, step_battles))
         self._direct_commands: Commands | None = None  # see _take_direct_serial
-        self._direct_serial = self._step_batch_serial
+        self._direct_serial = self._step_battles
         lo, hi = (0.0, 0.0) if cooldown_jitter is None else (float(cooldown_jitter[0]), float(cooldown_jitter[1]))
         if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi and lo > -8):
             raise ValueError(f"cooldown_jitter must be (low, high) game loops with -8 < low <= high, or None; "
@@ -173,10 +173,10 @@ class BattleEngine:
         if self.batch_size >= PARALLEL_MIN_BATCH:
             self._step_batch(*args, numba.get_num_threads(), self._next_battle)
         elif cmd is self._direct_commands and act.ndim == 1:
-            self._direct_serial(*args)
+            self._direct_serial(0, self.batch_size, *args)
         else:
-            self._step_batch_serial(*args)
-            self._take_direct_serial(cmd, args)
+            self._step_battles(0, self.batch_size, *args)
+            self._take_direct_serial(cmd, (0, self.batch_size, *args))
 
     def _take_direct_serial(self, cmd: Commands, args: tuple) -> None:
         """Call the compiled serial kernel directly from now on when stepping with the command buffer ``cmd``.
@@ -188,7 +188,7 @@ class BattleEngine:
         """
         if self._direct_commands is not None:
             return
-        entry = compiled_entry(self._step_batch_serial, args)
+        entry = compiled_entry(self._step_battles, args)
         if entry is not None:
             self._direct_commands, self._direct_serial = cmd, entry
 

@@ -1,8 +1,9 @@
 """Numba kernels of the battle engine: one game loop of one battle, chained over ``step_mul`` loops and run in
 parallel over the batch.
 
-``step_batch`` is the only parallel kernel. For each battle (``_step_battle``) it takes 1-D row views of the state
-once per env step and hands them to small mechanics, one function per mechanic, inlined into the loop body:
+``step_battles`` steps a range of battles on the calling thread; ``step_batch`` spreads the batch over numba's
+threads in chunks, each a call of ``step_battles``. For each battle (``_step_battle``) it takes 1-D row views of the
+state once per env step and hands them to small mechanics, one function per mechanic, inlined into the loop body:
 
 1. ``_timers``: weapon cooldowns, shield regeneration after the no-damage delay, zerg regeneration, energy;
 2. ``_targeting``: ordered targets, SC2's automatic acquisition for units that acquire (idle, hold, attack-move)
@@ -21,11 +22,11 @@ Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechan
 
 - ``slot_stats[i, column]`` is the unit table row of the unit in slot i. A slot's type never changes (the map's
   layout fixes it), so the kernels read stats per slot, without going through ``utype``.
-- Both drivers inline the battle (``_step_battle``) into their loop over battles and are compiled without numba's
-  reference counting (``_nrt=False``): they allocate nothing, and every row view and inlined helper argument
-  otherwise cost an atomic increment and decrement on the state arrays' shared counters (half the serial time on
-  3m, and cache-line ping-pong between the threads). Called as a function, a battle also received the state (a
-  tuple of 20 arrays) by value on every call.
+- ``step_battles`` inlines the battle (``_step_battle``) into its loop over a range of battles, and both drivers are
+  compiled without numba's reference counting (``_nrt=False``): they allocate nothing, and every row view and
+  inlined helper argument otherwise cost an atomic increment and decrement on the state arrays' shared counters
+  (half the serial time on 3m, and cache-line ping-pong between the threads). Called as a function, a battle also
+  received the state (a tuple of 20 arrays) by value on every call; ``step_batch`` pays that once per chunk.
 - ``step_kernels_for`` compiles the drivers for one map's unit count, for big batches.
 - Separation finds overlapping pairs by sweeping the units in x order (``_sort_by_x``) instead of testing all
   pairs: 27m_vs_30m's step took half the time after this.
@@ -787,20 +788,58 @@ def _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, nex
     loop[0] += n_loops
 
 
-def _build_step_kernels(n_units: int) -> tuple[Any, Any]:
-    """The two drivers, ``step_batch`` and ``step_batch_serial``, for battles of ``n_units`` units (0: any number,
-    read from the state's shape); see ``step_kernels_for``."""
+def _battle_range_kernel(n_units: int) -> Any:
+    """``step_battles`` for battles of ``n_units`` units (0: any number, read from the state's shape)."""
+
+    @njit(cache=True, error_model="numpy", _nrt=False)
+    def step_battles(start, stop, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
+                     n_loops, active, jitter, by_x, key, engaged, x0, y0):
+        """Apply the commands, then run ``n_loops`` game loops, for battles ``start`` to ``stop - 1`` with
+        ``active[b]``, on the calling thread."""
+        n = st.alive.shape[1] if n_units == 0 else n_units
+        for b in range(start, stop):
+            if active[b]:
+                _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
+                             n_loops, jitter, by_x, key, engaged, x0, y0)
+
+    return step_battles
+
+
+step_battles = _battle_range_kernel(0)
+
+
+@njit(cache=True, parallel=True, error_model="numpy", _nrt=False)
+def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, active,
+               jitter, by_x, key, engaged, x0, y0, workers, next_battle):
+    """``step_battles`` over the whole batch on numba's threads.
+
+    One prange iteration per worker thread (``workers``: numba's thread count); each takes chunks of battles from
+    ``next_battle`` (an int64 array of one element, the shared counter) until all are taken (see ``scheduling``).
+    Each chunk is one call of the compiled ``step_battles``: inlining the battle here instead made numba's parfor
+    passes take 87 s to compile this kernel on 2 cores, against 4 s.
+    """
+    n_battles = st.alive.shape[0]
+    chunk = max(1, n_battles // (workers * CHUNKS_PER_THREAD))
+    next_battle[0] = 0
+    for _ in prange(workers):
+        while True:
+            start = fetch_add(next_battle, chunk)
+            if start >= n_battles:
+                break
+            step_battles(start, min(start + chunk, n_battles), st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk,
+                         next_hop, los, open_field, n_loops, active, jitter, by_x, key, engaged, x0, y0)
+
+
+def _inlined_batch_kernel(n_units: int) -> Any:
+    """``step_batch`` for battles of exactly ``n_units`` units, with the battle inlined into the parallel loop.
+
+    It cannot call ``step_kernels_for``'s ``step_battles`` as the generic ``step_batch`` calls its own: a compiled
+    function held in a closure hashes differently in every process, so numba's cache would never find the kernel.
+    """
 
     @njit(cache=True, parallel=True, error_model="numpy", _nrt=False)
-    def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, active,
-                   jitter, by_x, key, engaged, x0, y0, workers, next_battle):
-        """Apply the commands, then run ``n_loops`` game loops, for every battle with ``active[b]``.
-
-        One prange iteration per worker thread (``workers``: numba's thread count); each takes chunks of battles
-        from ``next_battle`` (an int64 array of one element, the shared counter) until all are taken (see
-        ``scheduling``).
-        """
-        n = st.alive.shape[1] if n_units == 0 else n_units
+    def step_batch_for_units(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
+                             active, jitter, by_x, key, engaged, x0, y0, workers, next_battle):
         n_battles = st.alive.shape[0]
         chunk = max(1, n_battles // (workers * CHUNKS_PER_THREAD))
         next_battle[0] = 0
@@ -811,29 +850,15 @@ def _build_step_kernels(n_units: int) -> tuple[Any, Any]:
                     break
                 for b in range(start, min(start + chunk, n_battles)):
                     if active[b]:
-                        _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los,
+                        _step_battle(n_units, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los,
                                      open_field, n_loops, jitter, by_x, key, engaged, x0, y0)
 
-    @njit(cache=True, error_model="numpy", _nrt=False)
-    def step_batch_serial(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                          active, jitter, by_x, key, engaged, x0, y0):
-        """``step_batch`` on the calling thread: small batches would pay more to wake the thread pool than they
-        gain."""
-        n = st.alive.shape[1] if n_units == 0 else n_units
-        for b in range(st.alive.shape[0]):
-            if active[b]:
-                _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                             n_loops, jitter, by_x, key, engaged, x0, y0)
-
-    return step_batch, step_batch_serial
-
-
-step_batch, step_batch_serial = _build_step_kernels(0)
+    return step_batch_for_units
 
 
 @functools.cache
 def step_kernels_for(n_units: int) -> tuple[Any, Any]:
-    """``(step_batch, step_batch_serial)`` compiled for battles of exactly ``n_units`` units.
+    """``(step_batch, step_battles)`` compiled for battles of exactly ``n_units`` units.
 
     With the count fixed at compile time LLVM unrolls the loops over units and drops their bounds: 3m at 4096
     battles steps about 10% faster. The price is a compilation per unit count (about 90 s on 2 cores, once: numba
@@ -842,4 +867,4 @@ def step_kernels_for(n_units: int) -> tuple[Any, Any]:
     """
     if isinstance(n_units, bool) or not isinstance(n_units, int) or n_units < 1:
         raise ValueError(f"n_units must be a positive int (units per battle), got {n_units!r}")
-    return _build_step_kernels(n_units)
+    return _inlined_batch_kernel(n_units), _battle_range_kernel(n_units)
