@@ -444,6 +444,11 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
         learning_rate=config.learning_rate, gamma=config.gamma, gae_lambda=config.gae_lambda,
         clip_range=config.clip_range, ent_coef=config.ent_coef, seed=config.seed, device="cpu", verbose=0,
         policy_kwargs={"net_arch": [int(n) for n in config.net_arch]}, tensorboard_log=config.tensorboard or None)
+    if not config.tensorboard:
+        # SB3's default logger makes an empty folder /tmp/SB3-<time> on every learn(), even when it writes nothing.
+        from stable_baselines3.common.logger import Logger
+
+        model.set_logger(Logger(folder=None, output_formats=[]))
 
     rows: list[dict[str, Any]] = []
     clock = {"start": time.perf_counter(), "eval": 0.0}

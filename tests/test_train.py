@@ -3,6 +3,7 @@ pools, and MaskablePPO on the subprocess env."""
 
 import csv
 import json
+import tempfile
 
 import numpy as np
 import pytest
@@ -51,10 +52,13 @@ def test_opponent_sets_for_evaluation():
         resolve_opponents("3m", "nobody")
 
 
-def test_train_and_eval_commands_end_to_end(tmp_path, capsys):
+def test_train_and_eval_commands_end_to_end(tmp_path, capsys, monkeypatch):
     from torch.distributions import Distribution
 
     out = tmp_path / "run"
+    temp = tmp_path / "temp"  # SB3's default logger would leave an empty SB3-<time> folder here
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
     validate = Distribution._validate_args  # another library may have switched it off already
     Distribution.set_default_validate_args(True)
     try:
@@ -65,6 +69,7 @@ def test_train_and_eval_commands_end_to_end(tmp_path, capsys):
     finally:
         Distribution.set_default_validate_args(validate)
     assert code == 0
+    assert list(temp.glob("SB3-*")) == []
     printed = capsys.readouterr().out
     assert printed.startswith("config:") and "map_name        3m" in printed
     assert "time inside the env (step + masks)" in printed and "win rate (masked" in printed
