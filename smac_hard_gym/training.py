@@ -407,6 +407,7 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     from smac_hard_gym.envs.vector import NativeVectorEnv
     from smac_hard_gym.opponents import opponent_from_text
     from smac_hard_gym.wrappers.sb3 import SB3VecEnv
+    from smac_hard_gym.wrappers.sb3_policy import MaskableJointMultiInputPolicy, MaskableJointPolicy
 
     torch.set_num_threads(config.torch_threads)
     numba.set_num_threads(min(config.env_threads, numba.config.NUMBA_NUM_THREADS))
@@ -438,7 +439,9 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     venv = VecMonitor(timed)
     eval_env = NativeVectorEnv(map_name, min(config.eval_envs, config.eval_episodes), autoreset_mode="SameStep",
                                opponent=opponent, **kwargs)
-    policy = "MultiInputPolicy" if config.obs_mode == "dict" else "MlpPolicy"
+    # sb3-contrib's MlpPolicy / MultiInputPolicy with the joint action as one batched categorical: the same weights
+    # for the same seed, 10-20% less training time at these settings (wrappers/sb3_policy.py)
+    policy = MaskableJointMultiInputPolicy if config.obs_mode == "dict" else MaskableJointPolicy
     model = MaskablePPO(
         policy, venv, n_steps=config.n_steps, batch_size=config.batch_size, n_epochs=config.n_epochs,
         learning_rate=config.learning_rate, gamma=config.gamma, gae_lambda=config.gae_lambda,

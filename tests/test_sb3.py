@@ -126,3 +126,55 @@ def test_maskable_ppo_and_eval_callback_run_without_warnings(tmp_path):
     assert len(callback.evaluations_results) == 2 and len(callback.evaluations_successes[0]) == 2
     train_env.close()
     eval_env.close()
+
+
+def test_batched_joint_distribution_matches_sb3_contribs_multicategorical():
+    from sb3_contrib.common.maskable.distributions import MaskableMultiCategoricalDistribution
+
+    from smac_hard_gym.wrappers.sb3_policy import BatchedMaskableMultiCategorical
+
+    dims, batch = [9] * 5, 64
+    gen = torch.Generator().manual_seed(0)
+    logits = torch.randn(batch, sum(dims), generator=gen, requires_grad=True)
+    masks = torch.rand(batch, sum(dims), generator=gen) < 0.6
+    masks.view(batch, 5, 9)[:, :, 1] = True  # every unit has a legal action (stop), as in SMAC
+    stock, ours = MaskableMultiCategoricalDistribution(dims), BatchedMaskableMultiCategorical(dims)
+    for dist in (stock, ours):
+        dist.proba_distribution(logits)
+        dist.apply_masking(masks.numpy())
+    torch.manual_seed(3)
+    sampled = stock.sample()
+    torch.manual_seed(3)
+    assert torch.equal(ours.sample(), sampled)  # the same random numbers pick the same actions
+    assert masks.view(batch, 5, 9).gather(2, sampled.unsqueeze(-1)).all()  # never a masked action
+    assert torch.equal(ours.mode(), stock.mode())
+    assert torch.equal(ours.log_prob(sampled), stock.log_prob(sampled))
+    assert torch.equal(ours.entropy(), stock.entropy())
+    grads = [torch.autograd.grad((d.log_prob(sampled) + 0.01 * d.entropy()).sum(), logits)[0] for d in (stock, ours)]
+    assert torch.equal(grads[0], grads[1])
+    with pytest.raises(ValueError, match=r"action_dims must all be equal.*\[9, 8\]"):
+        BatchedMaskableMultiCategorical([9, 8])
+
+
+@pytest.mark.parametrize("obs_mode", ["joint", "dict"])
+def test_joint_policies_train_the_same_weights_as_sb3_contribs(obs_mode):
+    from smac_hard_gym.wrappers.sb3_policy import MaskableJointMultiInputPolicy, MaskableJointPolicy
+
+    ours = MaskableJointPolicy if obs_mode == "joint" else MaskableJointMultiInputPolicy
+    stock = "MlpPolicy" if obs_mode == "joint" else "MultiInputPolicy"
+    weights = []
+    for policy in (stock, ours):
+        venv = VecMonitor(SB3VecEnv(NativeVectorEnv("3m", 4, autoreset_mode="SameStep", opponent="smac",
+                                                    obs_mode=obs_mode)))
+        model = MaskablePPO(policy, venv, n_steps=64, batch_size=128, n_epochs=2, seed=7, device="cpu")
+        model.learn(512)
+        weights.append([p.detach().clone() for p in model.policy.parameters()])
+        venv.close()
+    assert all(torch.equal(a, b) for a, b in zip(*weights, strict=True))
+    assert not all(torch.equal(a, b) for a, b in zip(weights[0], _fresh_weights(stock, obs_mode), strict=True))
+
+
+def _fresh_weights(policy, obs_mode):
+    venv = SB3VecEnv(NativeVectorEnv("3m", 4, autoreset_mode="SameStep", opponent="smac", obs_mode=obs_mode))
+    model = MaskablePPO(policy, venv, n_steps=64, batch_size=128, seed=7, device="cpu")
+    return [p.detach().clone() for p in model.policy.parameters()]

@@ -105,9 +105,12 @@ class NativeVectorEnv(VectorEnv):
         self._renderer = None
 
     def __repr__(self) -> str:
-        env_id = self.spec.id if self.spec is not None else self.map_name
-        return (f"NativeVectorEnv({env_id}, num_envs={self.num_envs}, "
-                f"autoreset_mode={self.autoreset_mode.value})")
+        # getattr: also called on an env whose __init__ raised (a traceback's locals), before these are set
+        spec = getattr(self, "spec", None)
+        env_id = spec.id if spec is not None else getattr(self, "map_name", "?")
+        mode = getattr(self, "autoreset_mode", None)
+        return (f"NativeVectorEnv({env_id}, num_envs={getattr(self, 'num_envs', '?')}, "
+                f"autoreset_mode={getattr(mode, 'value', None)})")
 
     # -----------------------------------------------------------------------------------------------------------
     # Gymnasium API.
