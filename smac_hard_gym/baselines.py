@@ -7,10 +7,10 @@ its map's ``blackbox`` pool (the paper's black-box evaluation, section 6.2), and
 - ``runs/<map>-<opponent>-s<seed>/``: each run's ``train`` files, ``train.log``, and for ``smac`` runs
   ``blackbox.json`` and ``eval.log``;
 - ``results.json``: the sweep's settings, every run's final test win rate, and per map and opponent the mean,
-  standard deviation (over seeds, ``ddof=0``), minimum and maximum; the black-box rows per script; the value
-  estimates of the mixing experiment;
-- ``results.csv`` and ``blackbox.csv``: the same tables flat; ``curves/<map>.png``: test win rate against env steps,
-  mean over seeds with a min-max band, one line per opponent.
+  standard deviation (over seeds, ``ddof=0``), minimum and maximum; the black-box rows per script; the ``default``
+  runs' final test win rate per script of the pool; the value estimates of the mixing experiment;
+- ``results.csv``, ``blackbox.csv`` and ``pool.csv``: the same tables flat; ``curves/<map>.png``: test win rate
+  against env steps, mean over seeds with a min-max band, one line per opponent.
 
 The sweep is resumable: a run whose ``summary.json`` exists (and was not interrupted) is skipped, any other run
 directory is cleared and the run redone. :func:`write_report` writes a markdown table from ``results.json`` next to
@@ -365,15 +365,16 @@ def _read_curve(path: Path) -> dict[int, float]:
 
 
 def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, Any]:
-    """Read every finished run under ``out/runs`` and write ``results.json``, ``results.csv``, ``blackbox.csv``
-    and ``curves/<map>.png``; returns the results. Without ``config``, the one saved in ``results.json`` (if any)
-    is kept."""
+    """Read every finished run under ``out/runs`` and write ``results.json``, ``results.csv``, ``blackbox.csv``,
+    ``pool.csv`` and ``curves/<map>.png``; returns the results. Without ``config``, the one saved in
+    ``results.json`` (if any) is kept."""
     out = Path(out)
     runs: list[dict[str, Any]] = []
     curves: dict[tuple[str, str], list[dict[int, float]]] = {}
     blackbox: dict[tuple[str, str], list[float]] = {}
     weights: dict[tuple[str, str], float] = {}
     values: dict[tuple[str, str], list[float]] = {}
+    pool: dict[tuple[str, str], list[float]] = {}  # (map, script) -> final test win rate per `default` seed
     for path in sorted((out / "runs").glob("*")):
         if run_state(path) != "done":
             continue
@@ -384,6 +385,9 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
                "best_win_rate": summary["best_win_rate"], "train_wall_s": summary.get("train_wall_s"),
                "dir": str(path.relative_to(out))}
         key = (summary["map"], summary["opponent"])
+        if summary["opponent"] == "default":
+            for script, rate in (summary.get("final_per_opponent") or {}).items():
+                pool.setdefault((summary["map"], script), []).append(rate)
         if (path / "curve.csv").is_file():
             curves.setdefault(key, []).append(_read_curve(path / "curve.csv"))
         if (path / "blackbox.json").is_file():
@@ -409,13 +413,16 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     bb_table = [{"map": m, "script": s, "weight": weights.get((m, s), 1.0), **spread(v)}
                 for (m, s), v in sorted(blackbox.items(), key=script_order)]
     value_table = [{"map": m, "opponent": o, **spread(v)} for (m, o), v in sorted(values.items(), key=_order)]
+    pool_table = [{"map": m, "script": s, **spread(v)} for (m, s), v in sorted(pool.items(), key=script_order)]
     saved = {}
     if config is None and (out / "results.json").is_file():
         saved = json.loads((out / "results.json").read_text()).get("config", {})
     results = {"config": asdict(config) if config is not None else saved, "runs": runs, "table": table,
-               "blackbox": bb_table, "values": value_table}
+               "blackbox": bb_table, "values": value_table, "pool": pool_table}
     _write_csv(out / "results.csv", table, ("map", "opponent", "seeds", "mean", "std", "min", "max"))
     _write_csv(out / "blackbox.csv", bb_table, ("map", "script", "weight", "seeds", "mean", "std", "min", "max"))
+    if pool_table:
+        _write_csv(out / "pool.csv", pool_table, ("map", "script", "seeds", "mean", "std", "min", "max"))
     if value_table:
         _write_csv(out / "values.csv", value_table, ("map", "opponent", "seeds", "mean", "std", "min", "max"))
     _plot_curves(out / "curves", curves)
@@ -519,6 +526,10 @@ def report_markdown(results: dict[str, Any], maps: Sequence[str] | None = None) 
         lines += ["", "Black-box, per script (models trained against `smac`):", "",
                   "| map | script | weight | win rate |", "|---|---|---:|---:|"]
         lines += [f"| {r['map']} | {r['script']} | {r['weight']:.2f} | {_cell(r)} |" for r in scripts]
+    if results.get("pool"):
+        lines += ["", "Against the `default` pool, per script (the final test episodes drawn against each script; "
+                  "models trained against the pool):", "", "| map | script | win rate |", "|---|---|---:|"]
+        lines += [f"| {r['map']} | {r['script']} | {_cell(r)} |" for r in results["pool"]]
     if results.get("values"):
         lines += ["", "Mean value estimate (critic, first observation of test episodes):", "",
                   "| map | opponent | test win rate | mean value |", "|---|---|---:|---:|"]

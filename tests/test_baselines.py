@@ -13,7 +13,8 @@ from smac_hard_gym.baselines import PAPER, Run, SweepConfig, aggregate, plan, re
 from smac_hard_gym.cli import main
 
 
-def _fake_run(out, map_name, opponent, seed, final, curve, blackbox=None, interrupted=False, value=None):
+def _fake_run(out, map_name, opponent, seed, final, curve, blackbox=None, interrupted=False, value=None,
+              per_opponent=None):
     """A run directory as `smac-hard-gym train` (and `eval --json`) leave it, with chosen numbers."""
     path = Run(map_name, opponent, seed).path(out)
     path.mkdir(parents=True)
@@ -24,7 +25,8 @@ def _fake_run(out, map_name, opponent, seed, final, curve, blackbox=None, interr
         writer.writerows(curve)
     (path / "summary.json").write_text(json.dumps({
         "map": map_name, "opponent": opponent, "timesteps": curve[-1][0], "final_win_rate": final,
-        "best_win_rate": max(r for _, r in curve), "train_wall_s": 1.0, "interrupted": interrupted}))
+        "best_win_rate": max(r for _, r in curve), "train_wall_s": 1.0, "interrupted": interrupted,
+        "final_per_opponent": per_opponent or {}}))
     if blackbox is not None:
         weights = {name: 1.0 / len(blackbox) for name in blackbox}
         (path / "blackbox.json").write_text(json.dumps({
@@ -114,10 +116,24 @@ def test_aggregation_by_hand(tmp_path):
     for seed, (final, bb) in enumerate([(1.0, (0.0, 0.5)), (0.5, (0.25, 0.25)), (0.75, (0.5, 1.0))]):
         _fake_run(tmp_path, "3m", "smac", seed, final, [(0, 0.0), (100, final / 2), (200, final)],
                   blackbox={"line_front": bb[0], "other": bb[1]})
-    _fake_run(tmp_path, "3m", "default", 0, 0.25, [(0, 0.0), (200, 0.25)])
+    _fake_run(tmp_path, "3m", "default", 0, 0.25, [(0, 0.0), (200, 0.25)],
+              per_opponent={"line_front": 0.0, "base": 0.5})
+    _fake_run(tmp_path, "8m", "default", 0, 0.5, [(0, 0.0), (200, 0.5)],
+              per_opponent={"line_front": 0.0, "line_weakest": 1.0})
+    _fake_run(tmp_path, "8m", "default", 1, 0.75, [(0, 0.0), (200, 0.75)],
+              per_opponent={"line_front": 0.5, "line_weakest": 1.0})
+    _fake_run(tmp_path, "8m", "smac", 0, 1.0, [(0, 0.0), (200, 1.0)], per_opponent={"smac": 1.0})
     (tmp_path / "runs" / "3m-default-s1").mkdir()  # partial: left out
     results = aggregate(tmp_path)
-    smac, default = results["table"]
+    smac, default = results["table"][:2]
+    pool = {(r["map"], r["script"]): (r["seeds"], r["mean"], r["min"], r["max"]) for r in results["pool"]}
+    assert pool == {("3m", "line_front"): (1, 0.0, 0.0, 0.0), ("3m", "base"): (1, 0.5, 0.5, 0.5),  # `smac` runs: none
+                    ("8m", "line_front"): (2, 0.25, 0.0, 0.5), ("8m", "line_weakest"): (2, 1.0, 1.0, 1.0)}
+    assert [(r["map"], r["script"]) for r in results["pool"]][:2] == [("3m", "base"), ("3m", "line_front")]
+    with open(tmp_path / "pool.csv") as handle:
+        assert next(csv.DictReader(handle)) == {"map": "3m", "script": "base", "seeds": "1", "mean": "0.5000",
+                                                "std": "0.0000", "min": "0.5000", "max": "0.5000"}
+    assert "| 8m | line_front | 0.25 ± 0.25 (0.00-0.50) |" in report_markdown(results)
     assert (smac["map"], smac["opponent"], smac["seeds"]) == ("3m", "smac", 3)
     assert smac["mean"] == pytest.approx(0.75)
     assert smac["std"] == pytest.approx(math.sqrt(0.125 / 3))
