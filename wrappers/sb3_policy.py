@@ -39,13 +39,12 @@ class BatchedMaskableMultiCategorical(MaskableMultiCategoricalDistribution):
         self.distribution: MaskableCategorical | None = None
 
     def _by_dimension(self, flat: th.Tensor) -> th.Tensor:
-        # (batch, dims * choices) -> (dims, batch, choices): each dimension's (batch, choices) slice has the strides
-        # of the parent's th.split column block, and rows run dimension after dimension as its list of distributions
+        # (batch, dims * choices), or flat -> (dims, batch, choices): each dimension's (batch, choices) slice has the
+        # strides of the parent's th.split column block, and rows run dimension after dimension as its distributions
         return flat.reshape(-1, self.n_dims, self.n_choices).transpose(0, 1)
 
     def proba_distribution(self, action_logits: th.Tensor) -> BatchedMaskableMultiCategorical:
-        logits = self._by_dimension(action_logits.view(-1, sum(self.action_dims)))
-        self.distribution = MaskableCategorical(logits=logits)
+        self.distribution = MaskableCategorical(logits=self._by_dimension(action_logits))
         self.distributions = [self.distribution]  # the parent's "parameters set" checks look at this list
         return self
 
@@ -72,7 +71,7 @@ class BatchedMaskableMultiCategorical(MaskableMultiCategoricalDistribution):
     def apply_masking(self, masks: Any) -> None:
         assert self.distribution is not None, "Must set distribution parameters"
         if masks is not None:
-            masks = self._by_dimension(th.as_tensor(masks, dtype=th.bool).view(-1, sum(self.action_dims)))
+            masks = self._by_dimension(th.as_tensor(masks, dtype=th.bool))
         self.distribution.apply_masking(masks)
 
 
