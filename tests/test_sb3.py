@@ -128,7 +128,13 @@ def test_maskable_ppo_and_eval_callback_run_without_warnings(tmp_path):
     eval_env.close()
 
 
-def test_batched_joint_distribution_matches_sb3_contribs_multicategorical():
+# the masks applied after proba_distribution: MaskablePPO applies them once (or never); None lifts them
+MASKINGS = {"masked": ["masks"], "never": [], "lifted": [None], "masked-then-lifted": ["masks", None],
+            "lifted-then-masked": [None, "masks"], "masked-twice": ["masks", "masks"]}
+
+
+@pytest.mark.parametrize("masking", MASKINGS)
+def test_batched_joint_distribution_matches_sb3_contribs_multicategorical(masking):
     from sb3_contrib.common.maskable.distributions import MaskableMultiCategoricalDistribution
 
     from smac_hard_gym.wrappers.sb3_policy import BatchedMaskableMultiCategorical
@@ -141,12 +147,14 @@ def test_batched_joint_distribution_matches_sb3_contribs_multicategorical():
     stock, ours = MaskableMultiCategoricalDistribution(dims), BatchedMaskableMultiCategorical(dims)
     for dist in (stock, ours):
         dist.proba_distribution(logits)
-        dist.apply_masking(masks.numpy())
+        for mask in MASKINGS[masking]:
+            dist.apply_masking(None if mask is None else masks.numpy())
     torch.manual_seed(3)
     sampled = stock.sample()
     torch.manual_seed(3)
     assert torch.equal(ours.sample(), sampled)  # the same random numbers pick the same actions
-    assert masks.view(batch, 5, 9).gather(2, sampled.unsqueeze(-1)).all()  # never a masked action
+    if MASKINGS[masking][-1:] == ["masks"]:
+        assert masks.view(batch, 5, 9).gather(2, sampled.unsqueeze(-1)).all()  # never a masked action
     assert torch.equal(ours.mode(), stock.mode())
     assert torch.equal(ours.log_prob(sampled), stock.log_prob(sampled))
     assert torch.equal(ours.entropy(), stock.entropy())
@@ -157,16 +165,19 @@ def test_batched_joint_distribution_matches_sb3_contribs_multicategorical():
 
 
 @pytest.mark.parametrize("obs_mode", ["joint", "dict"])
-def test_joint_policies_train_the_same_weights_as_sb3_contribs(obs_mode):
+def test_joint_policies_and_buffers_train_the_same_weights_as_sb3_contribs(obs_mode):
+    from smac_hard_gym.wrappers.sb3_buffers import MaskableJointDictRolloutBuffer, MaskableJointRolloutBuffer
     from smac_hard_gym.wrappers.sb3_policy import MaskableJointMultiInputPolicy, MaskableJointPolicy
 
     ours = MaskableJointPolicy if obs_mode == "joint" else MaskableJointMultiInputPolicy
+    our_buffer = MaskableJointRolloutBuffer if obs_mode == "joint" else MaskableJointDictRolloutBuffer
     stock = "MlpPolicy" if obs_mode == "joint" else "MultiInputPolicy"
     weights = []
-    for policy in (stock, ours):
+    for policy, buffer in ((stock, None), (ours, our_buffer)):
         venv = VecMonitor(SB3VecEnv(NativeVectorEnv("3m", 4, autoreset_mode="SameStep", opponent="smac",
                                                     obs_mode=obs_mode)))
-        model = MaskablePPO(policy, venv, n_steps=64, batch_size=128, n_epochs=2, seed=7, device="cpu")
+        model = MaskablePPO(policy, venv, n_steps=64, batch_size=128, n_epochs=2, seed=7, device="cpu",
+                            rollout_buffer_class=buffer)
         model.learn(512)
         weights.append([p.detach().clone() for p in model.policy.parameters()])
         venv.close()

@@ -23,6 +23,7 @@ from typing import Any
 import torch as th
 from sb3_contrib.common.maskable.distributions import MaskableCategorical, MaskableMultiCategoricalDistribution
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy, MaskableMultiInputActorCriticPolicy
+from torch.distributions import Categorical
 
 __all__ = ["BatchedMaskableMultiCategorical", "MaskableJointPolicy", "MaskableJointMultiInputPolicy"]
 
@@ -36,7 +37,8 @@ class BatchedMaskableMultiCategorical(MaskableMultiCategoricalDistribution):
             raise ValueError(f"action_dims must all be equal for a batched categorical, got {list(action_dims)}")
         super().__init__(action_dims)
         self.n_dims, self.n_choices = len(action_dims), int(action_dims[0])
-        self.distribution: MaskableCategorical | None = None
+        self._logits: th.Tensor | None = None
+        self._distribution: MaskableCategorical | None = None
 
     def _by_dimension(self, flat: th.Tensor) -> th.Tensor:
         # (batch, dims * choices), or flat -> (dims, batch, choices): each dimension's (batch, choices) slice has the
@@ -44,35 +46,66 @@ class BatchedMaskableMultiCategorical(MaskableMultiCategoricalDistribution):
         return flat.reshape(-1, self.n_dims, self.n_choices).transpose(0, 1)
 
     def proba_distribution(self, action_logits: th.Tensor) -> BatchedMaskableMultiCategorical:
-        self.distribution = MaskableCategorical(logits=self._by_dimension(action_logits))
-        self.distributions = [self.distribution]  # the parent's "parameters set" checks look at this list
+        # built on first use: when masks come first, apply_masking builds it without an unmasked pass
+        self._logits, self._distribution = self._by_dimension(action_logits), None
         return self
+
+    @property
+    def distribution(self) -> MaskableCategorical:
+        if self._distribution is None:
+            assert self._logits is not None, "Must set distribution parameters"
+            self._distribution = MaskableCategorical(logits=self._logits)
+        return self._distribution
+
+    @property
+    def distributions(self) -> list[MaskableCategorical]:  # type: ignore[override]
+        # the parent's attribute, read by its "parameters set" checks
+        return [] if self._logits is None else [self.distribution]
+
+    @distributions.setter
+    def distributions(self, value: list[MaskableCategorical]) -> None:
+        if value:
+            raise AttributeError("set the parameters with proba_distribution()")
 
     def _joint(self, per_dimension: th.Tensor) -> th.Tensor:
         # (dims, batch) -> the sum over dimensions, in the parent's memory layout and so in its order of summation
         return per_dimension.t().contiguous().sum(dim=1)
 
     def log_prob(self, actions: th.Tensor) -> th.Tensor:
-        assert self.distribution is not None, "Must set distribution parameters"
         return self._joint(self.distribution.log_prob(actions.view(-1, self.n_dims).t()))
 
     def entropy(self) -> th.Tensor:
-        assert self.distribution is not None, "Must set distribution parameters"
         return self._joint(self.distribution.entropy())
 
     def sample(self) -> th.Tensor:
-        assert self.distribution is not None, "Must set distribution parameters"
         return self.distribution.sample().t()
 
     def mode(self) -> th.Tensor:
-        assert self.distribution is not None, "Must set distribution parameters"
         return th.argmax(self.distribution.probs, dim=-1).t()
 
     def apply_masking(self, masks: Any) -> None:
-        assert self.distribution is not None, "Must set distribution parameters"
         if masks is not None:
             masks = self._by_dimension(th.as_tensor(masks, dtype=th.bool))
-        self.distribution.apply_masking(masks)
+        if self._distribution is None and masks is not None:
+            assert self._logits is not None, "Must set distribution parameters"
+            self._distribution = _masked_categorical(self._logits, masks)
+        else:
+            self.distribution.apply_masking(masks)
+
+
+def _masked_categorical(logits: th.Tensor, masks: th.Tensor) -> MaskableCategorical:
+    """``MaskableCategorical(logits=logits)`` then ``.apply_masking(masks)``, less the constructor's unmasked pass.
+
+    The constructor normalises the logits, keeps them, then re-applies "no mask", normalising them a second time;
+    masking discards that second result and starts again from the kept ones. Skipping it leaves every tensor as it
+    was (same operations on the same inputs) and saves a third of the log-sum-exps, which are exp-bound.
+    """
+    distribution = MaskableCategorical.__new__(MaskableCategorical)
+    distribution.masks = None
+    Categorical.__init__(distribution, None, logits, None)  # what MaskableCategorical.__init__ passes
+    distribution._original_logits = distribution.logits
+    distribution.apply_masking(masks)
+    return distribution
 
 
 class _BatchedJointAction:
