@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["SweepConfig", "Run", "PAPER", "plan", "run_state", "run_sweep", "aggregate", "write_report",
-           "value_estimate", "EXPERIMENTS"]
+           "value_estimate", "EXPERIMENTS", "findings", "spearman"]
 
 # The paper's section 4.2: 10m_vs_11m against 'attack the nearest' (N), 'attack the weakest' (W) and the 50/50 mix.
 EXPERIMENTS: dict[str, dict[str, Any]] = {
@@ -419,6 +419,7 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
         saved = json.loads((out / "results.json").read_text()).get("config", {})
     results = {"config": asdict(config) if config is not None else saved, "runs": runs, "table": table,
                "blackbox": bb_table, "values": value_table, "pool": pool_table}
+    results["findings"] = findings(results)
     _write_csv(out / "results.csv", table, ("map", "opponent", "seeds", "mean", "std", "min", "max"))
     _write_csv(out / "blackbox.csv", bb_table, ("map", "script", "weight", "seeds", "mean", "std", "min", "max"))
     if pool_table:
@@ -485,6 +486,84 @@ def _plot_curves(folder: Path, curves: dict[tuple[str, str], list[dict[int, floa
 # Report.
 
 
+# ---------------------------------------------------------------------------------------------------------------
+# The paper's claims, checked on the finished maps.
+
+HARDER_BY = 1 / 32  # one test episode of each seed's 32: a smaller gap between two cells is counted level
+# (our table, its opponent, the paper's table it is ranked against)
+RANKED = (("smac", "smac", "smac_2m"), ("default", "default", "default_10m"), ("default", "default", "default_2m"),
+          ("black-box", MIXTURE, "blackbox_10m"))
+
+
+def average_ranks(values: Sequence[float]) -> np.ndarray:
+    """Ranks from 1, tied values sharing the mean of the ranks they span (as Spearman's correlation ranks them)."""
+    array = np.asarray(values, dtype=float)
+    ranks = np.empty(array.size)
+    ranks[array.argsort(kind="stable")] = np.arange(1, array.size + 1)
+    for value in np.unique(array):
+        ranks[array == value] = ranks[array == value].mean()
+    return ranks
+
+
+def spearman(a: Sequence[float], b: Sequence[float]) -> float:
+    """Spearman's rank correlation (Pearson's on average ranks); NaN when either side has a single value."""
+    ranks_a, ranks_b = average_ranks(a), average_ranks(b)
+    if len(ranks_a) < 2 or np.ptp(ranks_a) == 0 or np.ptp(ranks_b) == 0:
+        return float("nan")
+    return float(np.corrcoef(ranks_a, ranks_b)[0, 1])
+
+
+def findings(results: dict[str, Any]) -> dict[str, Any]:
+    """The paper's claims on the maps where both opponents have the sweep's full seeds: on which maps the mixed pool
+    (``default``) and the black-box scripts are lower than ``smac`` by more than :data:`HARDER_BY`, level, or higher;
+    and Spearman's rank correlation of each of our tables with the paper's mean of QMIX and MAPPO over those maps."""
+    table = {(r["map"], r["opponent"]): r for r in results.get("table", []) if r["opponent"] in SWEEP_OPPONENTS}
+    table.update({(r["map"], MIXTURE): r for r in results.get("blackbox", []) if r["script"] == MIXTURE})
+    seeds = max((r["seeds"] for r in table.values()), default=0)
+    maps = [m for m in _MAP_ORDER if all(table.get((m, o), {}).get("seeds") == seeds for o in SWEEP_OPPONENTS)]
+
+    def against_smac(opponent: str) -> dict[str, list[str]]:
+        verdicts: dict[str, list[str]] = {"lower": [], "level": [], "higher": [], "missing": []}
+        for m in maps:
+            row, smac = table.get((m, opponent)), table[(m, "smac")]
+            gap = None if row is None else row["mean"] - smac["mean"]
+            verdict = ("missing" if gap is None else "lower" if gap < -HARDER_BY else "higher" if gap > HARDER_BY
+                       else "level")
+            verdicts[verdict].append(m)
+        return verdicts
+
+    ranked = {}
+    for label, opponent, paper in RANKED:
+        pairs = [(table[(m, opponent)]["mean"], float(np.mean(PAPER[paper][m])))
+                 for m in maps if (m, opponent) in table]
+        rho = spearman(*zip(*pairs, strict=True)) if pairs else float("nan")
+        ranked[f"{label} vs paper {paper}"] = None if np.isnan(rho) else rho  # None: no ranking (JSON has no NaN)
+    return {"seeds": seeds, "maps": maps, "harder_by": HARDER_BY, "pool_vs_smac": against_smac("default"),
+            "blackbox_vs_smac": against_smac(MIXTURE), "spearman": ranked}
+
+
+def findings_markdown(found: dict[str, Any]) -> str:
+    """:func:`findings` as a few lines of the report."""
+    if not found["maps"]:
+        return ""
+    maps = found["maps"]
+
+    def verdicts(name: str, claim: str) -> str:
+        parts = [f"{claim} on {len(v)} of {len(maps)}" if k == "lower" else f"{k} on {len(v)}"
+                 for k, v in found[name].items() if v or k == "lower"]
+        lists = "; ".join(f"{k}: {', '.join(v)}" for k, v in found[name].items() if v)
+        return f"- {', '.join(parts)} ({lists})."
+
+    ranks = ", ".join(f"{k} {'undefined (all tied)' if v is None else f'{v:.2f}'}"
+                      for k, v in found["spearman"].items())
+    return "\n".join([
+        f"Checked on the {len(maps)} maps with {found['seeds']} seeds against both opponents (a gap of "
+        f"{found['harder_by']:.3f} or less, one test episode per seed, counts as level):", "",
+        verdicts("pool_vs_smac", "the mixed pool lower than `smac`"),
+        verdicts("blackbox_vs_smac", "black-box lower than `smac`"),
+        f"- Spearman rank correlation with the paper's mean of QMIX and MAPPO over these maps: {ranks}."]) + "\n"
+
+
 def _cell(row: dict[str, Any] | None) -> str:
     if row is None:
         return "not run yet"
@@ -507,7 +586,7 @@ def report_markdown(results: dict[str, Any], maps: Sequence[str] | None = None) 
     budget = f"{steps[0]:,}" if len(steps) == 1 else ", ".join(f"{s:,}" for s in steps) or "-"
     maps = list(maps) if maps is not None else list(_MAP_ORDER)
     experiment = results.get("config", {}).get("experiment")
-    lines = [] if experiment else [
+    lines = [] if experiment else [findings_markdown(findings(results)),
              f"Ours: MaskablePPO on this engine, final test win rate (masked, deterministic) after {budget} env "
              "steps, mean ± std (min-max) over seeds. Paper: QMIX / MAPPO on StarCraft II.", "",
              "| map | smac: paper QMIX (2M) | smac: paper MAPPO (2M) | smac: ours | default: paper QMIX (10M) | "

@@ -177,6 +177,42 @@ def test_report_puts_ours_next_to_the_paper(tmp_path):
     assert "after 1,000 env steps" in text and "section 6.2" in text
 
 
+def test_spearman_by_hand():
+    # one swapped pair of four: 1 - 6 * (1 + 1) / (4 * (16 - 1)) = 0.8
+    assert baselines.spearman([1, 2, 3, 4], [10, 30, 20, 40]) == pytest.approx(0.8)
+    # a tie shares ranks 1 and 2 (1.5 each): ranks (1.5, 1.5, 3) against (1, 2, 3); Pearson's r = 1.5 / sqrt(1.5 * 2)
+    assert baselines.spearman([0.0, 0.0, 1.0], [0.1, 0.2, 0.3]) == pytest.approx(math.sqrt(3) / 2)
+    assert baselines.spearman([3, 2, 1], [1, 2, 3]) == pytest.approx(-1.0)
+    assert math.isnan(baselines.spearman([0.0, 0.0, 0.0], [0.1, 0.2, 0.3]))  # every map tied: no ranking
+
+
+def test_findings_sort_maps_by_the_papers_claims(tmp_path):
+    # (map, smac finals, default finals, black-box finals of the smac runs), 2 seeds each
+    cells = [("3m", (1.0, 1.0), (1.0, 0.96875), (0.0, 0.0)),  # default 1/64 lower: level; black-box lower
+             ("8m", (1.0, 1.0), (0.5, 0.5), (0.0, 0.5)),  # both lower
+             ("2s3z", (0.5, 0.5), (1.0, 1.0), (0.5, 0.5)),  # default higher; black-box level
+             ("MMM", (1.0, 0.0), (0.0, 0.0), (0.0, 0.0))]  # smac 0.5: lower by exactly 0.5
+    for map_name, smac, default, bb in cells:
+        for seed in range(2):
+            _fake_run(tmp_path, map_name, "smac", seed, smac[seed], [(0, 0.0), (100, smac[seed])],
+                      blackbox={"only": bb[seed]})
+            _fake_run(tmp_path, map_name, "default", seed, default[seed], [(0, 0.0), (100, default[seed])])
+    _fake_run(tmp_path, "25m", "smac", 0, 1.0, [(0, 0.0), (100, 1.0)])  # one seed, no default: left out
+    found = aggregate(tmp_path)["findings"]
+    assert found["seeds"] == 2 and found["maps"] == ["3m", "8m", "2s3z", "MMM"]  # the paper's order
+    assert found["pool_vs_smac"] == {"lower": ["8m", "MMM"], "level": ["3m"], "higher": ["2s3z"], "missing": []}
+    assert found["blackbox_vs_smac"] == {"lower": ["3m", "8m", "MMM"], "level": ["2s3z"], "higher": [],
+                                         "missing": []}
+    # smac means 1, 1, 0.5, 0.5 (ranks 3.5, 3.5, 1.5, 1.5) against the paper's 2M means of QMIX and MAPPO:
+    # 3m 0.98475, 8m 0.96675, 2s3z 0.9571, MMM 0.954 (ranks 4, 3, 2, 1)
+    assert found["spearman"]["smac vs paper smac_2m"] == pytest.approx(2 / math.sqrt(5))
+    # black-box means 0, 0.25, 0.5, 0 (ranks 1.5, 3, 4, 1.5) against the paper's 0.057, 0.044, 0.086, 0 (3, 2, 4, 1)
+    assert found["spearman"]["black-box vs paper blackbox_10m"] == pytest.approx(3 / math.sqrt(22.5))
+    text = report_markdown(aggregate(tmp_path))
+    assert "the mixed pool lower than `smac` on 2 of 4, level on 1, higher on 1" in text
+    assert "black-box lower than `smac` on 3 of 4, level on 1" in text
+
+
 def test_paper_tables_cover_every_map():
     from smac_hard_gym.maps import list_maps
 
