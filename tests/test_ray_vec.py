@@ -57,9 +57,11 @@ def _kill_and_wait(actor, timeout=60.0):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         try:
-            ray.get(actor.pid.remote(), timeout=timeout)
+            ray.get(actor.pid.remote(), timeout=max(0.1, min(5.0, deadline - time.monotonic())))
         except ray.exceptions.RayActorError:
             return
+        except ray.exceptions.GetTimeoutError:
+            continue  # a probe that hangs (actor neither alive nor reported dead yet): probe again until the deadline
         time.sleep(0.05)
     raise TimeoutError(f"the killed actor still answered after {timeout:g} s")
 
