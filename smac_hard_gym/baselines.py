@@ -564,6 +564,26 @@ def findings_markdown(found: dict[str, Any]) -> str:
         f"- Spearman rank correlation with the paper's mean of QMIX and MAPPO over these maps: {ranks}."]) + "\n"
 
 
+def training_time(results: dict[str, Any]) -> list[dict[str, Any]]:
+    """Per map: the runs' training wall time (``train``'s clock, test evaluations left out), in minutes."""
+    minutes: dict[str, list[float]] = {}
+    for run in results.get("runs", []):
+        if run.get("train_wall_s") is not None:
+            minutes.setdefault(run["map"], []).append(run["train_wall_s"] / 60)
+    return [{"map": m, "runs": len(v), "median": float(np.median(v)), "min": min(v), "max": max(v), "total": sum(v)}
+            for m, v in sorted(minutes.items(), key=lambda item: _order((item[0], "")))]
+
+
+def _time_markdown(rows: list[dict[str, Any]]) -> list[str]:
+    if not rows:
+        return []
+    total = sum(r["total"] for r in rows) / 60
+    return ["", f"Training wall time per run, minutes (`train`'s clock, test evaluations left out; {total:.1f} hours "
+            f"over {sum(r['runs'] for r in rows)} runs):", "", "| map | runs | median | min-max |",
+            "|---|---:|---:|---:|",
+            *(f"| {r['map']} | {r['runs']} | {r['median']:.1f} | {r['min']:.1f}-{r['max']:.1f} |" for r in rows)]
+
+
 def _cell(row: dict[str, Any] | None) -> str:
     if row is None:
         return "not run yet"
@@ -600,6 +620,7 @@ def report_markdown(results: dict[str, Any], maps: Sequence[str] | None = None) 
         lines.append(f"| {map_name} | " + " | ".join(cells) + " |")
     if not experiment:
         lines += ["", "Paper columns: " + "; ".join(f"{k}: {v}" for k, v in SOURCES.items()) + "."]
+        lines += _time_markdown(training_time(results))
     scripts = [r for r in results.get("blackbox", []) if r["script"] != "mixture"]
     if scripts:
         lines += ["", "Black-box, per script (models trained against `smac`):", "",

@@ -14,7 +14,7 @@ from smac_hard_gym.cli import main
 
 
 def _fake_run(out, map_name, opponent, seed, final, curve, blackbox=None, interrupted=False, value=None,
-              per_opponent=None):
+              per_opponent=None, train_wall_s=1.0):
     """A run directory as `smac-hard-gym train` (and `eval --json`) leave it, with chosen numbers."""
     path = Run(map_name, opponent, seed).path(out)
     path.mkdir(parents=True)
@@ -25,7 +25,7 @@ def _fake_run(out, map_name, opponent, seed, final, curve, blackbox=None, interr
         writer.writerows(curve)
     (path / "summary.json").write_text(json.dumps({
         "map": map_name, "opponent": opponent, "timesteps": curve[-1][0], "final_win_rate": final,
-        "best_win_rate": max(r for _, r in curve), "train_wall_s": 1.0, "interrupted": interrupted,
+        "best_win_rate": max(r for _, r in curve), "train_wall_s": train_wall_s, "interrupted": interrupted,
         "final_per_opponent": per_opponent or {}}))
     if blackbox is not None:
         weights = {name: 1.0 / len(blackbox) for name in blackbox}
@@ -211,6 +211,18 @@ def test_findings_sort_maps_by_the_papers_claims(tmp_path):
     text = report_markdown(aggregate(tmp_path))
     assert "the mixed pool lower than `smac` on 2 of 4, level on 1, higher on 1" in text
     assert "black-box lower than `smac` on 3 of 4, level on 1" in text
+
+
+def test_training_time_per_map(tmp_path):
+    for seed, seconds in enumerate([60.0, 180.0, 120.0]):  # 1, 3 and 2 minutes: median 2, total 6
+        _fake_run(tmp_path, "8m", "smac", seed, 1.0, [(0, 0.0), (100, 1.0)], train_wall_s=seconds)
+    _fake_run(tmp_path, "3m", "default", 0, 1.0, [(0, 0.0), (100, 1.0)], train_wall_s=1800.0)
+    results = aggregate(tmp_path)
+    rows = baselines.training_time(results)
+    assert [(r["map"], r["runs"]) for r in rows] == [("3m", 1), ("8m", 3)]  # the paper's order
+    assert (rows[1]["median"], rows[1]["min"], rows[1]["max"], rows[1]["total"]) == (2.0, 1.0, 3.0, 6.0)
+    text = report_markdown(results)
+    assert "0.6 hours over 4 runs" in text and "| 8m | 3 | 2.0 | 1.0-3.0 |" in text  # (30 + 6) minutes
 
 
 def test_paper_tables_cover_every_map():
