@@ -41,8 +41,9 @@ def main() -> None:
     numba.set_num_threads(1)
     envs = gym.make_vec("SMACHard-3m-v0", num_envs=64, autoreset_mode="SameStep", opponent="base")
     venv = VecMonitor(SB3VecEnv(envs))
-    # sb3-contrib's own policy, to show it trains unchanged; smac_hard_gym.wrappers.sb3_policy.MaskableJointPolicy
-    # trains the same weights for the same seed in 10-20% less time (what `smac-hard-gym train` uses).
+    # sb3-contrib's own policy, to show it trains unchanged. smac_hard_gym.wrappers.sb3_policy.MaskableJointPolicy
+    # with rollout_buffer_class=smac_hard_gym.wrappers.sb3_buffers.MaskableJointRolloutBuffer trains the same weights
+    # for the same seed in 10-20% less time (what `smac-hard-gym train` uses).
     model = MaskablePPO("MlpPolicy", venv, n_steps=32, batch_size=512, n_epochs=10, learning_rate=5e-4,
                         ent_coef=0.01, policy_kwargs={"net_arch": [128, 128]}, seed=0, device="cpu", verbose=0)
     print(f"win rate before training: {win_rate(model):.2f}")
