@@ -138,3 +138,25 @@ def test_bench_engine_cli_still_works(tmp_path):
                  "--json", str(out)]) == 0
     doc = json.loads(out.read_text())
     assert doc["benchmark"] == "engine" and doc["results"][0]["num_envs"] == 2
+
+
+def test_bench_train_interleaves_both_variants_to_the_same_weights(tmp_path, capsys):
+    out = tmp_path / "train.json"
+    assert main(["bench", "train", "--map", "3m", "--timesteps", "2048", "--rounds", "2", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["benchmark"] == "train" and [r["mode"] for r in doc["results"]] == ["stock", "joint"]
+    for result in doc["results"]:
+        assert len(result["runs"]) == 2 and result["steps_per_second"] > 0 and result["num_envs"] == 64
+        # the same seed and steps, each variant on its own copy of the random streams: equal weights, a cross-check
+        # that the joint policy and buffer are sb3-contrib's, not only a timing
+        assert result["extra"]["same_weights"] is True
+    assert doc["results"][0]["extra"]["speedup_vs_stock"] == 1.0
+    assert "same weights" in capsys.readouterr().out
+
+
+def test_bench_train_rejects_bad_input(capsys):
+    assert main(["bench", "train", "--map", "nosuchmap"]) == 2
+    assert "nosuchmap" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["bench", "train", "--rounds", "0"])
+    assert "positive int" in capsys.readouterr().err

@@ -137,10 +137,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     eng.add_argument("--repeats", type=int, default=3, help="timed repeats; the median is reported (default 3)")
     eng.add_argument("--json", default=None, metavar="PATH", help="write results as JSON")
 
+    tr = sub.add_parser("train", help="MaskablePPO training steps/s, sb3-contrib's policy against train's joint one "
+                                      "(needs the [train] extra)")
+    tr.add_argument("--map", type=_names, default=["8m"], help="map name, or comma-separated names (default 8m)")
+    tr.add_argument("--timesteps", type=_count, default=8192,
+                    help="env steps per timed round, rounded up to whole rollouts of 2048 (default 8192)")
+    tr.add_argument("--rounds", type=_count, default=3, help="timed rounds per variant; the median is reported "
+                                                               "(default 3)")
+    tr.add_argument("--json", default=None, metavar="PATH", help="write results as JSON")
+
 
 def run(args: argparse.Namespace) -> int:
     if args.target == "engine":
         return _run_engine(args)
+    if args.target == "train":
+        return _run_train(args)
     if args.target == "report":
         return _run_report(args)
     return _run_vector(args)
@@ -231,5 +242,29 @@ def _run_engine(args: argparse.Namespace) -> int:
                   f"{r.extra['state_bytes_per_battle']:>14,.0f}")
     if args.json:
         write_json(args.json, "engine", results)
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _run_train(args: argparse.Namespace) -> int:
+    from smac_hard_gym.bench import machine_info, write_json
+    from smac_hard_gym.bench.training import bench_training
+    from smac_hard_gym.maps import load_map
+
+    for name in args.map:
+        load_map(name)  # clear error for an unknown map before any training
+    info = machine_info()
+    print(f"machine: {info['cpu']}, {info['cores']} cores; one torch and one engine thread, 64 battles, "
+          f"train's PPO settings; {args.rounds} rounds of {args.timesteps:,} steps per variant, interleaved")
+    print(f"{'map':<14}{'variant':>8}{'env-steps/s':>13}{'min-max':>16}{'vs stock':>10}{'same weights':>14}")
+    results = []
+    for name in args.map:
+        for r in bench_training(name, timesteps=args.timesteps, rounds=args.rounds):
+            results.append(r)
+            low, high = r.spread
+            print(f"{name:<14}{r.mode:>8}{r.steps_per_second:>13,.0f}{f'{low:,.0f}-{high:,.0f}':>16}"
+                  f"{r.extra['speedup_vs_stock']:>9.2f}x{str(r.extra['same_weights']):>14}")
+    if args.json:
+        write_json(args.json, "train", results)
         print(f"wrote {args.json}")
     return 0

@@ -1,0 +1,102 @@
+"""``bench train``: MaskablePPO's training throughput (rollouts and updates) with sb3-contrib's stock policy and buffer
+against the joint ones ``smac-hard-gym train`` uses, at ``train``'s settings, interleaved round by round.
+
+Both variants start from the same seed and learn the same steps, so their weights must come out equal; the result
+says whether they did, next to the steps/s.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from smac_hard_gym.bench.timing import Measurement
+
+VARIANTS = ("stock", "joint")  # sb3-contrib's MlpPolicy and buffer; MaskableJointPolicy and MaskableJointRolloutBuffer
+
+
+def _model(variant: str, map_name: str, num_envs: int, seed: int) -> Any:
+    from sb3_contrib import MaskablePPO
+    from stable_baselines3.common.logger import Logger
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from smac_hard_gym.envs.vector import NativeVectorEnv
+    from smac_hard_gym.training import TrainConfig
+    from smac_hard_gym.wrappers.sb3 import SB3VecEnv
+    from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
+    from smac_hard_gym.wrappers.sb3_policy import MaskableJointPolicy
+
+    defaults = TrainConfig(map_name=map_name)
+    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(map_name, num_envs, autoreset_mode="SameStep", opponent="smac")))
+    joint = variant == "joint"
+    model = MaskablePPO(
+        MaskableJointPolicy if joint else "MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
+        rollout_buffer_class=MaskableJointRolloutBuffer if joint else None, n_steps=defaults.n_steps,
+        batch_size=defaults.batch_size, n_epochs=defaults.n_epochs, learning_rate=defaults.learning_rate,
+        gamma=defaults.gamma, gae_lambda=defaults.gae_lambda, clip_range=defaults.clip_range,
+        ent_coef=defaults.ent_coef, policy_kwargs={"net_arch": [int(n) for n in defaults.net_arch]})
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
+
+
+def _random_streams(state: tuple | None = None) -> tuple:
+    """The global random streams SB3 draws from (torch, numpy, random): returns them, or sets ``state``."""
+    import random
+
+    import torch
+
+    if state is not None:
+        torch.set_rng_state(state[0])
+        np.random.set_state(state[1])
+        random.setstate(state[2])
+    return torch.get_rng_state(), np.random.get_state(), random.getstate()
+
+
+def bench_training(map_name: str, timesteps: int = 8192, rounds: int = 3, num_envs: int = 64,
+                   seed: int = 0) -> list[Measurement]:
+    """Per variant: the median env-steps/s of ``model.learn(timesteps)`` over ``rounds`` (rollouts and updates
+    together), after one untimed rollout and update (compilation, first allocations). One torch thread, one engine
+    thread, torch.distributions' argument checks off: as ``smac-hard-gym train`` runs."""
+    import numba
+    import torch
+    from torch.distributions import Distribution
+
+    torch.set_num_threads(1)
+    numba.set_num_threads(1)
+    validate = Distribution._validate_args
+    Distribution.set_default_validate_args(False)
+    try:
+        models = {v: _model(v, map_name, num_envs, seed) for v in VARIANTS}
+        # Each model seeds the global random streams when built; interleaved, each learns on its own copy of them,
+        # so both draw the same numbers and must train the same weights.
+        streams = {v: _random_streams() for v in VARIANTS}
+
+        def learn(variant: str, steps: int) -> int:
+            model = models[variant]
+            _random_streams(streams[variant])
+            before = model.num_timesteps
+            model.learn(steps, reset_num_timesteps=before == 0)  # whole rollouts: at least `steps` steps
+            streams[variant] = _random_streams()
+            return model.num_timesteps - before
+
+        for variant in VARIANTS:
+            learn(variant, models[variant].n_steps * num_envs)
+        runs: dict[str, list[float]] = {v: [] for v in VARIANTS}
+        for _ in range(rounds):  # interleaved: a busy spell on a shared machine hits both
+            for variant in VARIANTS:
+                start = time.perf_counter()
+                steps = learn(variant, timesteps)
+                runs[variant].append(steps / (time.perf_counter() - start))
+        same = all(torch.equal(a, b) for a, b in zip(models["stock"].policy.parameters(),
+                                                         models["joint"].policy.parameters(), strict=True))
+        for model in models.values():
+            model.get_env().close()
+    finally:
+        Distribution.set_default_validate_args(validate)
+    speed = {v: float(np.median(r)) for v, r in runs.items()}
+    return [Measurement("train", map_name, num_envs, speed[v], runs[v], mode=v,
+                        extra={"timesteps_per_round": timesteps, "same_weights": same,
+                               "speedup_vs_stock": speed[v] / speed["stock"]})
+            for v in VARIANTS]
