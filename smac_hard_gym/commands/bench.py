@@ -5,6 +5,7 @@
   (``--peer smax``); writes JSON, a markdown table and a PNG.
 - ``bench report PATH.json``: re-render the tables, targets and plot of a ``bench vector`` JSON.
 - ``bench engine``: the battle engine alone, random commands, resets counted.
+- ``bench train``: MaskablePPO training steps/s, sb3-contrib's policy and buffer against ``train``'s joint ones.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import shlex
 import sys
 from pathlib import Path
 
-HELP = "throughput benchmarks: vector envs (side by side with SMAX) or the engine alone"
+HELP = "throughput benchmarks: vector envs (side by side with SMAX), the engine alone, or MaskablePPO training"
 
 
 def _ints(text: str) -> list[int]:
