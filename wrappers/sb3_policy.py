@@ -118,7 +118,8 @@ class _JointCategorical(MaskableCategorical):
     def _normalise(self, logits: th.Tensor, masked: bool) -> None:
         # Categorical.__init__(logits=logits), with the logsumexp swapped where masked logits would make it slow
         self.__dict__.pop("probs", None)  # a cached lazy property of the previous logits
-        self.logits = logits - (logsumexp(logits) if masked else logits.logsumexp(dim=-1, keepdim=True))
+        slow_path = masked and logits.device.type == "cpu"  # the slow exp is torch's vectorised CPU one
+        self.logits = logits - (logsumexp(logits) if slow_path else logits.logsumexp(dim=-1, keepdim=True))
         self._param = self.logits
         self._num_events = logits.size(-1)
         Distribution.__init__(self, logits.size()[:-1], validate_args=getattr(self, "_validate_args", None))
