@@ -225,7 +225,7 @@ def _run_vector(args: argparse.Namespace) -> int:
 
 
 def _run_engine(args: argparse.Namespace) -> int:
-    from smac_hard_gym.bench import bench_engine, machine_info, write_json
+    from smac_hard_gym.bench import bench_engine, machine_info
     from smac_hard_gym.maps import load_map
 
     maps = [m for m in args.map.split(",") if m]
@@ -241,14 +241,20 @@ def _run_engine(args: argparse.Namespace) -> int:
             results.append(r)
             print(f"{name:<18}{batch:>7}{r.steps_per_second:>14,.0f}{r.setup_seconds:>11.1f}"
                   f"{r.extra['state_bytes_per_battle']:>14,.0f}")
-    if args.json:
-        write_json(args.json, "engine", results)
-        print(f"wrote {args.json}")
+    return _save(args.json, "engine", results)
+
+
+def _save(path: str | None, kind: str, results: list) -> int:
+    from smac_hard_gym.bench import write_json
+
+    if path:
+        write_json(path, kind, results)
+        print(f"wrote {path}")
     return 0
 
 
 def _run_train(args: argparse.Namespace) -> int:
-    from smac_hard_gym.bench import machine_info, write_json
+    from smac_hard_gym.bench import machine_info
     from smac_hard_gym.bench.training import bench_training
     from smac_hard_gym.maps import load_map
 
@@ -265,7 +271,4 @@ def _run_train(args: argparse.Namespace) -> int:
             low, high = r.spread
             print(f"{name:<14}{r.mode:>8}{r.steps_per_second:>13,.0f}{f'{low:,.0f}-{high:,.0f}':>16}"
                   f"{r.extra['speedup_vs_stock']:>9.2f}x{str(r.extra['same_weights']):>14}")
-    if args.json:
-        write_json(args.json, "train", results)
-        print(f"wrote {args.json}")
-    return 0
+    return _save(args.json, "train", results)
