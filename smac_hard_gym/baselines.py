@@ -606,7 +606,8 @@ def report_markdown(results: dict[str, Any], maps: Sequence[str] | None = None) 
     budget = f"{steps[0]:,}" if len(steps) == 1 else ", ".join(f"{s:,}" for s in steps) or "-"
     maps = list(maps) if maps is not None else list(_MAP_ORDER)
     experiment = results.get("config", {}).get("experiment")
-    lines = [] if experiment else [findings_markdown(findings(results)),
+    found = results["findings"] if "findings" in results else findings(results)  # aggregate() stores them
+    lines = [] if experiment else [findings_markdown(found),
              f"Ours: MaskablePPO on this engine, final test win rate (masked, deterministic) after {budget} env "
              "steps, mean ± std (min-max) over seeds. Paper: QMIX / MAPPO on StarCraft II.", "",
              "| map | smac: paper QMIX (2M) | smac: paper MAPPO (2M) | smac: ours | default: paper QMIX (10M) | "

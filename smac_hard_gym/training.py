@@ -16,11 +16,12 @@ the functions, so ``import smac_hard_gym.training`` is cheap.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -120,6 +121,13 @@ class TrainConfig:
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of the envs this run trains and evaluates on."""
         return {"map_name": self.map_name, "obs_mode": self.obs_mode}
+
+    def ppo_kwargs(self) -> dict[str, Any]:
+        """MaskablePPO's keyword arguments for this run's PPO settings (policy, env and buffer apart)."""
+        return {"n_steps": self.n_steps, "batch_size": self.batch_size, "n_epochs": self.n_epochs,
+                "learning_rate": self.learning_rate, "gamma": self.gamma, "gae_lambda": self.gae_lambda,
+                "clip_range": self.clip_range, "ent_coef": self.ent_coef, "seed": self.seed, "device": "cpu",
+                "verbose": 0, "policy_kwargs": {"net_arch": [int(n) for n in self.net_arch]}}
 
 
 @dataclass
@@ -384,16 +392,24 @@ def _evaluate_league(model: Any, league: Any, config: TrainConfig, core: Any) ->
 
 def train(config: TrainConfig, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Train MaskablePPO as ``config`` says; returns the summary (also written to ``summary.json``)."""
+    with distribution_checks_off():
+        return _train(config, log)
+
+
+@contextlib.contextmanager
+def distribution_checks_off() -> Iterator[None]:
+    """torch.distributions' argument checks off inside, restored after.
+
+    torch.distributions checks the arguments of every distribution it builds, and MaskablePPO builds two
+    Categoricals per agent per forward pass (27 agents on 27m_vs_30m): the checks took about 12% of the training
+    time there. They only raise on malformed logits (what comes out does not change).
+    """
     from torch.distributions import Distribution
 
-    # torch.distributions checks the arguments of every distribution it builds, and MaskablePPO builds two
-    # Categoricals per agent per forward pass (27 agents on 27m_vs_30m): the checks took about 12% of the training
-    # time there. They only raise on malformed logits (what comes out does not change), so they are off while
-    # training, and restored after.
     validate = Distribution._validate_args
     Distribution.set_default_validate_args(False)
     try:
-        return _train(config, log)
+        yield
     finally:
         Distribution.set_default_validate_args(validate)
 
@@ -446,12 +462,8 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     dict_obs = config.obs_mode == "dict"
     policy = MaskableJointMultiInputPolicy if dict_obs else MaskableJointPolicy
     buffer = MaskableJointDictRolloutBuffer if dict_obs else MaskableJointRolloutBuffer
-    model = MaskablePPO(
-        policy, venv, rollout_buffer_class=buffer, n_steps=config.n_steps, batch_size=config.batch_size,
-        n_epochs=config.n_epochs,
-        learning_rate=config.learning_rate, gamma=config.gamma, gae_lambda=config.gae_lambda,
-        clip_range=config.clip_range, ent_coef=config.ent_coef, seed=config.seed, device="cpu", verbose=0,
-        policy_kwargs={"net_arch": [int(n) for n in config.net_arch]}, tensorboard_log=config.tensorboard or None)
+    model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, tensorboard_log=config.tensorboard or None,
+                        **config.ppo_kwargs())
     if not config.tensorboard:
         # SB3's default logger makes an empty folder /tmp/SB3-<time> on every learn(), even when it writes nothing.
         from stable_baselines3.common.logger import Logger

@@ -7,7 +7,7 @@ the masked logits of one 27m_vs_30m minibatch (27 units x 512 x 36 actions) 6.7 
 backward passes were about a sixth of a training run on that map. :func:`exp` keeps those inputs off the slow path
 (0.0 below -104, where float32's exp is 0; torch's own ``exp`` for the few between -104 and -87, whose results are
 denormal), and :func:`logsumexp` is ATen's CPU logsumexp written with it, forward and backward, so the results are
-the same tensors (``tests/test_sb3.py`` compares them with torch's).
+the same tensors (``tests/test_torch_exp.py`` compares them with torch's).
 """
 
 from __future__ import annotations

@@ -28,15 +28,11 @@ def _model(variant: str, map_name: str, num_envs: int, seed: int) -> Any:
     from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
     from smac_hard_gym.wrappers.sb3_policy import MaskableJointPolicy
 
-    defaults = TrainConfig(map_name=map_name)
     venv = VecMonitor(SB3VecEnv(NativeVectorEnv(map_name, num_envs, autoreset_mode="SameStep", opponent="smac")))
     joint = variant == "joint"
-    model = MaskablePPO(
-        MaskableJointPolicy if joint else "MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
-        rollout_buffer_class=MaskableJointRolloutBuffer if joint else None, n_steps=defaults.n_steps,
-        batch_size=defaults.batch_size, n_epochs=defaults.n_epochs, learning_rate=defaults.learning_rate,
-        gamma=defaults.gamma, gae_lambda=defaults.gae_lambda, clip_range=defaults.clip_range,
-        ent_coef=defaults.ent_coef, policy_kwargs={"net_arch": [int(n) for n in defaults.net_arch]})
+    model = MaskablePPO(MaskableJointPolicy if joint else "MlpPolicy", venv,
+                        rollout_buffer_class=MaskableJointRolloutBuffer if joint else None,
+                        **TrainConfig(map_name=map_name, seed=seed).ppo_kwargs())
     model.set_logger(Logger(folder=None, output_formats=[]))
     return model
 
@@ -61,13 +57,12 @@ def bench_training(map_name: str, timesteps: int = 8192, rounds: int = 3, num_en
     thread, torch.distributions' argument checks off: as ``smac-hard-gym train`` runs."""
     import numba
     import torch
-    from torch.distributions import Distribution
+
+    from smac_hard_gym.training import distribution_checks_off
 
     torch.set_num_threads(1)
     numba.set_num_threads(1)
-    validate = Distribution._validate_args
-    Distribution.set_default_validate_args(False)
-    try:
+    with distribution_checks_off():
         models = {v: _model(v, map_name, num_envs, seed) for v in VARIANTS}
         # Each model seeds the global random streams when built; interleaved, each learns on its own copy of them,
         # so both draw the same numbers and must train the same weights.
@@ -93,8 +88,6 @@ def bench_training(map_name: str, timesteps: int = 8192, rounds: int = 3, num_en
                                                          models["joint"].policy.parameters(), strict=True))
         for model in models.values():
             model.get_env().close()
-    finally:
-        Distribution.set_default_validate_args(validate)
     speed = {v: float(np.median(r)) for v, r in runs.items()}
     return [Measurement("train", map_name, num_envs, speed[v], runs[v], mode=v,
                         extra={"timesteps_per_round": timesteps, "same_weights": same,
