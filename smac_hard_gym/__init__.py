@@ -6,6 +6,8 @@ Importing the package registers ``SMACHard-<map>-v0`` for every map in :func:`sm
 points are lazy strings: the import stays light (no engine compile, no torch), and ``"smac_hard_gym:SMACHard-3m-v0"``
 works in fresh worker processes. ``StarCraft2Env`` (SMAC's API) is exported lazily too, and so are
 ``RayVectorEnv`` and ``make_ray_vec`` (vector workers on Ray; ``ray`` is imported only when they are used).
+
+``__version__`` is the installed distribution's version (written once, in ``pyproject.toml``), read on first use.
 """
 
 from __future__ import annotations
@@ -51,7 +53,21 @@ def register_envs() -> list[str]:
     return ids
 
 
+def _read_version() -> str:
+    """The installed distribution's version: pyproject.toml is its one source. ``0+unknown`` when the package runs
+    from a source tree that was never installed (no metadata to read)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("smac-hard-gym")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
 def __getattr__(name: str):  # lazy exports keep `import smac_hard_gym` light
+    if name == "__version__":
+        globals()["__version__"] = found = _read_version()  # read once
+        return found
     if name in _LAZY_EXPORTS:
         import importlib
 

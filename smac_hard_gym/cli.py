@@ -32,7 +32,10 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from smac_hard_gym import __version__
+
     parser = argparse.ArgumentParser(prog="smac-hard-gym", description="SMAC-HARD on an embedded battle engine.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():
         module = importlib.import_module(module_name)

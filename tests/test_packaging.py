@@ -27,3 +27,14 @@ def test_wheel_contains_maps_scripts_and_subpackages(tmp_path):
     # Nothing named maps/opponents/wrappers lands at the top of site-packages.
     assert not any(n.split("/")[0] in ("maps", "opponents", "wrappers", "tests", "examples") for n in names)
     assert any(n.endswith("entry_points.txt") for n in names)
+    # The license text travels with the wheel (setuptools picks LICENSE up by default; pyproject says MIT).
+    license_files = [n for n in names if n.endswith(".dist-info/licenses/LICENSE")]
+    assert len(license_files) == 1, sorted(n for n in names if ".dist-info/" in n)
+    text = zipfile.ZipFile(wheel).read(license_files[0]).decode()
+    assert text.startswith("MIT License") and "smac-hard-gym contributors" in text
+
+
+def test_license_and_changelog_are_at_the_root():
+    assert (ROOT / "LICENSE").read_text().startswith("MIT License")
+    changelog = (ROOT / "CHANGELOG.md").read_text()
+    assert "## [Unreleased]" in changelog and "## [0.1.0]" in changelog
