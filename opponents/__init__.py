@@ -16,11 +16,12 @@
   of observations and masks (:mod:`smac_hard_gym.opponents.policy`);
 - a :class:`Script` object, or a list of any of these (a mixture).
 
-``opponent_probs`` gives one probability per script of the mixture (equal by default). User scripts run inside a
-guard (:class:`GuardedScript`) that turns exceptions, overlong calls, ``sys.exit`` and invalid commands into a
-:class:`ScriptError` naming the script, the map and the cause, and hands them read-only copies of the state.
-``isolation="process"`` runs them in a child process instead (:class:`ProcessIsolatedScript`), which also stops
-hangs inside C calls, crashes and ``os._exit`` (see ``make_opponent``).
+``opponent_probs`` gives one probability per script of the mixture (equal by default). By default (``isolation=
+None``, "auto") a script loaded from a file or module reference runs in a child process
+(:class:`ProcessIsolatedScript`: killed at its time limit, crashes and ``os._exit`` cannot reach the host), and a
+Script object you built runs in-process inside a guard (:class:`GuardedScript`, a bug catcher for your own code,
+not a security boundary). Both turn exceptions, overlong calls, ``sys.exit`` and invalid commands into a
+:class:`ScriptError` naming the script, the map and the cause (see ``make_opponent`` and docs/script_isolation.md).
 """
 
 from __future__ import annotations
@@ -48,18 +49,20 @@ from smac_hard_gym.opponents.loader import is_reference, load_script
 from smac_hard_gym.opponents.mixture import Mixture, check_probs
 from smac_hard_gym.opponents.per_battle import BattleView, PerBattleScript
 from smac_hard_gym.opponents.policy import PolicyScript, is_policy_file
+from smac_hard_gym.opponents.sandbox import SUPPORTED as SANDBOX_SUPPORTED
 from smac_hard_gym.opponents.sandbox import ProcessIsolatedScript
 
 __all__ = [
     "Script", "SideView", "ScriptError", "BaseScript", "SmacScript", "BatchScript", "Frame", "Memory", "Orders",
     "PerBattleScript", "BattleView", "Mixture", "GuardedScript", "ProcessIsolatedScript", "ScriptInfo", "SCRIPTS",
-    "POOLS", "ISOLATION_MODES", "make_opponent", "opponent_from_text", "make_script", "scripts_for_map",
-    "pool_for_map", "load_script", "PolicyScript", "League",
+    "POOLS", "ISOLATION_MODES", "AUTO_ISOLATION", "make_opponent", "opponent_from_text", "make_script",
+    "scripts_for_map", "pool_for_map", "load_script", "PolicyScript", "League",
 ]
 
 OpponentSpec = str | Script | Sequence[str | Script]
 
 ISOLATION_MODES = ("none", "guard", "process")
+AUTO_ISOLATION = None  # isolation=None: "process" for scripts loaded by reference where supported, else "guard"
 
 
 def opponent_from_text(text: str) -> str | list[str]:
@@ -67,10 +70,11 @@ def opponent_from_text(text: str) -> str | list[str]:
     return text.split(",") if "," in text else text
 
 
-def check_isolation(isolation: str, guard: bool | None = None) -> str:
-    """``isolation`` if it is one of ``ISOLATION_MODES`` and agrees with ``guard``; raises ValueError otherwise."""
-    if not isinstance(isolation, str) or isolation not in ISOLATION_MODES:
-        raise ValueError(f"isolation must be one of {ISOLATION_MODES}, got {isolation!r}")
+def check_isolation(isolation: str | None, guard: bool | None = None) -> str | None:
+    """``isolation`` if it is one of ``ISOLATION_MODES`` or None (auto) and agrees with ``guard``; raises
+    ValueError otherwise."""
+    if isolation is not AUTO_ISOLATION and (not isinstance(isolation, str) or isolation not in ISOLATION_MODES):
+        raise ValueError(f"isolation must be one of {ISOLATION_MODES}, got {isolation!r} (or None: auto)")
     if guard is False and isolation == "process":
         raise ValueError("guard=False cannot be combined with isolation='process' (sandboxed scripts are always "
                          "checked); drop one of them")
@@ -84,19 +88,41 @@ def _from_outside(entry: str | Script) -> bool:
     return isinstance(entry, str) and entry not in SCRIPTS and entry not in MIXTURE_NAMES and is_reference(entry)
 
 
+def _loaded_by_reference(entry: str | Script) -> bool:
+    """A user script the host would import from a file or module reference (not a built-in name, not a saved
+    policy)."""
+    return isinstance(entry, str) and _from_outside(entry) and not is_policy_file(entry)
+
+
+def _sandboxed(entry: str | Script) -> bool:
+    """A ProcessIsolatedScript, bare or in a guard: it already runs in a child process."""
+    return isinstance(getattr(entry, "script", entry), ProcessIsolatedScript)
+
+
+def resolve_isolation(entry: str | Script, isolation: str | None) -> str:
+    """The isolation ``entry`` gets: ``isolation`` when given; with None (auto), ``"process"`` for a script loaded
+    from a file or module reference where the sandbox is supported (POSIX), ``"guard"`` for everything else (a
+    Script object you built already runs your code in the host)."""
+    if isolation is not AUTO_ISOLATION:
+        return isolation
+    return "process" if SANDBOX_SUPPORTED and _loaded_by_reference(entry) else "guard"
+
+
 def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = None,
-                time_limit: float | None = DEFAULT_TIME_LIMIT, isolation: str = "guard") -> Script:
+                time_limit: float | None = DEFAULT_TIME_LIMIT, isolation: str | None = AUTO_ISOLATION) -> Script:
     """One script for map ``spec``: a built-in name, a user script reference or a Script object.
 
     ``isolation`` says how scripts that are not built-in (user files, user objects) run: ``"guard"`` in-process
     under :class:`GuardedScript`, ``"process"`` in a child process (:class:`ProcessIsolatedScript`, a reference is
-    then imported in the child only) behind the guard's command checks, ``"none"`` bare. ``guard`` True also
-    guards built-in scripts; False runs every script bare.
+    then imported in the child only) behind the guard's command checks, ``"none"`` bare, None (auto, the default)
+    as :func:`resolve_isolation` decides. ``guard`` True also guards built-in scripts; False runs every script bare.
     """
     spec = load_map(spec)
-    isolation = check_isolation(isolation, guard)
+    isolation = resolve_isolation(entry, check_isolation(isolation, guard))
     if guard is False:
         isolation = "none"
+    if isolation != "none" and _sandboxed(entry):  # already in a child: only add the command checks
+        return entry if isinstance(entry, GuardedScript) else GuardedScript(entry, time_limit=None)
     if isolation == "process" and _from_outside(entry):
         if isinstance(entry, GuardedScript):
             entry = entry.script
@@ -138,7 +164,7 @@ def make_script(spec: MapSpec | str, entry: str | Script, guard: bool | None = N
 
 def make_opponent(spec: MapSpec | str, opponent: OpponentSpec = "base",
                   opponent_probs: Sequence[float] | np.ndarray | None = None, *, guard: bool | None = None,
-                  time_limit: float | None = DEFAULT_TIME_LIMIT, isolation: str = "guard") -> Script:
+                  time_limit: float | None = DEFAULT_TIME_LIMIT, isolation: str | None = AUTO_ISOLATION) -> Script:
     """The opponent for map ``spec`` (see the module docstring for what ``opponent`` may be).
 
     A single script comes back as itself; ``"default"``, ``"blackbox"`` and lists come back as a :class:`Mixture`
@@ -150,12 +176,14 @@ def make_opponent(spec: MapSpec | str, opponent: OpponentSpec = "base",
     ``isolation``, the single entry point for it (built-in scripts are trusted and always run in-process, zero
     copy):
 
-    - ``"guard"`` (default): in-process under :class:`GuardedScript`: read-only copies of the state, checked
-      commands, ``time_limit`` seconds per call on any thread. A hang inside one C call or a crash of the
-      interpreter is beyond it.
-    - ``"process"``: in a child process (:class:`ProcessIsolatedScript`) killed at ``time_limit``; hangs in C
-      calls, segfaults and ``os._exit`` become a :class:`ScriptError` and the next call starts a new child. Costs
-      a process start and a pickled round trip per call.
+    - None (default, "auto"): ``"process"`` for a script loaded from a file or module reference (where the platform
+      supports it: POSIX), ``"guard"`` for a Script object built in-process.
+    - ``"guard"``: in-process under :class:`GuardedScript`: read-only copies of the state, checked commands, a
+      best-effort ``time_limit`` per call. A bug catcher for your own code, not a security boundary (see
+      :mod:`~smac_hard_gym.opponents.guard` for what it cannot stop).
+    - ``"process"``: in a child process (:class:`ProcessIsolatedScript`) killed with its process group at
+      ``time_limit``, with a memory limit; hangs, segfaults and ``os._exit`` become a :class:`ScriptError` and the
+      next call starts a new child. Costs a process start and a round trip per call.
     - ``"none"``: bare, for code you trust (same as ``guard=False``).
 
     ``guard=True`` additionally guards built-in scripts; ``guard=False`` runs everything bare.

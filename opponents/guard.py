@@ -1,28 +1,38 @@
-"""The guard around untrusted scripts: exceptions, time limits and invalid commands become a :class:`ScriptError`.
+"""The guard around user scripts: exceptions, time limits and invalid commands become a :class:`ScriptError`.
 
-A guarded script sees read-only copies of the battle state (:meth:`SideView.read_only`): a write raises and becomes
-a ScriptError, and nothing it does to its copy reaches the engine. It writes into a private command buffer; the
-guard checks every command of the active battles and copies only this side's commands into the real buffer, so a
-faulty script can neither crash the engine with a bad slot nor steer the other side. Checks (the error names
-script, map, battle, unit slot and the rule broken):
+The guard is a convenience and a bug catcher for scripts you wrote or trust, not a security boundary: the script
+runs in the host's interpreter, with the host's memory, files and modules in reach. What it does promise, for a
+script that is not trying to get around it:
 
-- the command kind is one of ``COMMAND_NAMES``;
-- ``attack`` targets an alive unit of the other side; ``heal`` targets another alive unit of this side;
-- ``move``/``attack_move`` points are finite (points outside the map are clamped by the engine);
-- nothing is written for the other side's slots.
+- read-only copies of the battle state (:meth:`SideView.read_only`): a write raises and becomes a ScriptError, and
+  nothing the script does to its copy reaches the engine;
+- checked commands: the script writes into a private command buffer; the guard checks every command of the active
+  battles and copies only this side's valid commands into the real buffer, so a faulty script can neither crash the
+  engine with a bad slot nor steer the other side (a buffer the script resized or retyped is a ScriptError too).
+  The error names script, map, battle, unit slot and the rule broken:
 
-``sys.exit()`` in a script becomes a ScriptError too; Ctrl-C (KeyboardInterrupt) still stops the program.
+  - the command kind is one of ``COMMAND_NAMES``;
+  - ``attack`` targets an alive unit of the other side; ``heal`` targets another alive unit of this side;
+  - ``move``/``attack_move`` points are finite (points outside the map are clamped by the engine);
+  - nothing is written for the other side's slots;
 
-Time limits: a call that runs past ``time_limit`` seconds fails, on any thread. A watchdog thread raises an
-exception inside the script's thread once the limit has passed (and again every limit while it keeps running, so
-a bare ``except:`` cannot hold it off for good); no signal or interval timer is used, so the caller's own
-``SIGALRM``/``ITIMER_REAL`` are never touched. What this cannot stop: Python only delivers the exception between
-bytecodes, so a script stuck inside one C call (a long ``time.sleep``, a blocking read, a C extension loop) is
-interrupted only when that call returns, and one that crashes the interpreter or calls ``os._exit`` takes the host
-with it. A call that returns late is still reported as over its limit. For scripts you do not trust, run them in
-a child process instead: ``make_opponent(..., isolation="process")``
-(:class:`~smac_hard_gym.opponents.sandbox.ProcessIsolatedScript`), which kills the child at the limit. On
-Python implementations without ``ctypes.pythonapi`` (not CPython) the limit is only checked when the call returns.
+- every exception a script raises becomes a ScriptError: ``sys.exit()``, ``GeneratorExit`` and other
+  BaseExceptions included. KeyboardInterrupt is the exception: it propagates, because a real Ctrl-C must still stop
+  the program and the guard cannot cheaply tell it from one the script raised;
+- a time limit, best effort: a watchdog thread raises an exception inside the script's thread once ``time_limit``
+  has passed, and again every limit while it keeps running (on any thread; no signal or interval timer is used, so
+  the caller's own ``SIGALRM``/``ITIMER_REAL`` are never touched). A call that returns late is still reported as
+  over its limit.
+
+What it cannot stop (in-process Python cannot): a script that catches BaseException in a loop keeps running for
+ever (the host hangs); Python only delivers the exception between bytecodes, so a script stuck in one C call (a
+long ``time.sleep``, a blocking read, a C extension loop) is interrupted only when that call returns; a script can
+monkeypatch the project or any module (later envs in the host see the change), leave threads that keep the host
+alive at exit, fork processes that outlive it, read and write anything the host can, end the host with
+``os._exit`` or crash it (a segfault). On Python implementations without ``ctypes.pythonapi`` (not CPython) the
+limit is only checked when the call returns. For scripts you do not trust, run them in a child process:
+``make_opponent(..., isolation="process")`` (:class:`~smac_hard_gym.opponents.sandbox.ProcessIsolatedScript`, the
+default for scripts loaded from a file or module reference).
 """
 
 from __future__ import annotations
@@ -185,11 +195,11 @@ class GuardedScript(Script):
         start = time.perf_counter()
         try:
             timed_out = _run_limited(self.time_limit, fn, args)
-        except ScriptError:
-            raise
+        except (ScriptError, KeyboardInterrupt, _Timeout):
+            raise  # a wrapped sandbox's error, Ctrl-C (see the module docstring), an outer guard's shot
         except SystemExit as err:
             raise ScriptError(name, view.spec.name, f"{what}() called sys.exit({err.code!r})") from None
-        except Exception as err:
+        except BaseException as err:  # GeneratorExit and the script's own BaseException subclasses too
             raise ScriptError(name, view.spec.name, f"{what}() raised {type(err).__name__}: {err}") from err
         if timed_out:
             raise ScriptError(name, view.spec.name, f"{what}() ran past its time limit of {self.time_limit:g} s "
@@ -215,6 +225,10 @@ class GuardedScript(Script):
         self._call("act", view, self.script.act, self._read_only(view), scratch,
                    frozen_copy(np.asarray(active, dtype=bool)))
         rows = np.flatnonzero(active)
+        problem = _broken_buffer(scratch, commands)
+        if problem:
+            self._scratch = None  # the next call gets a fresh one
+            raise ScriptError(self.script.name, view.spec.name, problem)
         if rows.size == 0:
             return
         problem = check_commands(view, scratch, rows)
@@ -227,6 +241,16 @@ class GuardedScript(Script):
             block = dst[rows, own]
             np.copyto(block, src[rows, own], where=wrote)
             dst[rows, own] = block
+
+
+def _broken_buffer(scratch: Commands, like: Commands) -> str:
+    """How a script broke its command buffer (``resize``, a new ``shape``/``dtype``/``strides``), or "" when each
+    array still has the shape and dtype of the real buffer's."""
+    for name, array, model in zip(Commands._fields, scratch, like, strict=True):
+        if array.shape != model.shape or array.dtype != model.dtype or not array.flags.c_contiguous:
+            return (f"act() broke its command buffer: commands.{name} is now {array.shape} {array.dtype}, expected "
+                    f"{model.shape} {model.dtype}")
+    return ""
 
 
 def _first(mask: np.ndarray, rows: np.ndarray, start: int) -> tuple[int, int]:

@@ -367,7 +367,7 @@ def sandboxed(tmp_path_factory):
 
 def test_a_sandboxed_script_plays_like_the_in_process_one(sandboxed):
     engine, view, rngs, _ = _setup()
-    inside = make_opponent("3m", sandboxed("Good"))
+    inside = make_opponent("3m", sandboxed("Good"), isolation="guard")
     outside = make_opponent("3m", sandboxed("Good"), isolation="process")
     try:
         assert isinstance(outside, GuardedScript) and isinstance(outside.script, ProcessIsolatedScript)
@@ -494,3 +494,18 @@ def test_envs_take_opponent_isolation_and_name_every_keyword_they_take():
     with pytest.raises(TypeError, match="opponent_isolation") as err:
         gym.make("SMACHard-3m-v0", oponent="base")
     assert "oponent" in str(err.value) and "reward_sparse" in str(err.value)
+
+
+def test_a_sandbox_built_by_hand_is_only_wrapped_in_the_command_checks(sandboxed):
+    sandbox = ProcessIsolatedScript(sandboxed("Good"), time_limit=LIMIT, memory_limit=1 << 30)
+    try:
+        for isolation in (None, "guard", "process"):
+            script = make_opponent("3m", sandbox, isolation=isolation)
+            assert isinstance(script, GuardedScript) and script.script is sandbox and script.time_limit is None
+        copy = pickle.loads(pickle.dumps(sandbox))  # a vector env worker's copy, with a child of its own
+        copy.close()
+        assert copy.memory_limit == 1 << 30
+    finally:
+        sandbox.close()
+    with pytest.raises(ValueError, match="memory_limit must be a positive number of bytes or None"):
+        ProcessIsolatedScript(sandboxed("Good"), memory_limit=0)

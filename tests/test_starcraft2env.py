@@ -231,7 +231,7 @@ def test_strategy_prob_weights_the_default_pool(monkeypatch):
 
     seen = {}
 
-    def fake_make_opponent(spec, opponent, opponent_probs=None, isolation="guard"):
+    def fake_make_opponent(spec, opponent, opponent_probs=None, isolation=None):
         seen.update(opponent=opponent, probs=opponent_probs)
         return Idle()
 

@@ -6,7 +6,7 @@ Public surface::
 
     core = TwoPlayerCore(map_name, batch_size=1, *, mode="script", opponent="smac", opponent_probs=None,
                          backend="native", step_mul=8, options=SmacOptions(), seed=None, backend_options=None,
-                         opponent_isolation="guard", encode_state=True, episode_limit=None, red_script=None)
+                         opponent_isolation=None, encode_state=True, episode_limit=None, red_script=None)
 
     core.reset(battles=None, seed=None)          # start new episodes (all battles, or the indices given)
     result = core.step(red_actions, blue_actions=None, *, replace_invalid=False, hint="", checked=False)
@@ -183,7 +183,7 @@ class TwoPlayerCore:
     def __init__(self, map_name: str | MapSpec, batch_size: int = 1, *, mode: str = "script",
                  opponent: Any = "smac", opponent_probs: Sequence[float] | None = None, backend: str = "native",
                  step_mul: int = 8, options: SmacOptions | None = None, seed: int | None = None,
-                 backend_options: dict | None = None, opponent_isolation: str = "guard", encode_state: bool = True,
+                 backend_options: dict | None = None, opponent_isolation: str | None = None, encode_state: bool = True,
                  episode_limit: int | None = None, red_script: Any = None) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")

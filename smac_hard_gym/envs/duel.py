@@ -174,15 +174,15 @@ def _check_seed(seed: Any) -> int:
 def run_duel(map_name: MapSpec | str, red: Any, blue: Any, episodes: int = 10, seed: int = 0,
              batch_size: int | None = None, *, red_probs: Sequence[float] | None = None,
              blue_probs: Sequence[float] | None = None, step_mul: int = 8, progress: bool = False,
-             guard: bool | None = None, isolation: str = "guard") -> DuelResult:
+             guard: bool | None = None, isolation: str | None = None) -> DuelResult:
     """Play ``episodes`` episodes of ``red`` against ``blue`` (anything :func:`make_opponent` accepts, or None /
     ``"idle"`` for a side without orders), running up to ``batch_size`` battles at once (default: all episodes, at
     most 64). Episode ``e`` is a battle seeded ``seed + e`` (module docstring).
 
     How user scripts run is :func:`make_opponent`'s choice, made once here for both sides (the core then takes the
-    scripts as they are): ``isolation`` ``"guard"`` (default: user scripts under the guard, built-in scripts bare),
-    ``"process"`` (user scripts in a child process) or ``"none"``; ``guard=False`` runs everything bare (as
-    ``isolation="none"``), ``guard=True`` also checks the built-in scripts' commands."""
+    scripts as they are): ``isolation`` None (default, auto: scripts loaded from a file or module in a child process,
+    Script objects under the guard, built-in scripts bare), ``"guard"``, ``"process"`` or ``"none"``; ``guard=False``
+    runs everything bare (as ``isolation="none"``), ``guard=True`` also checks the built-in scripts' commands."""
     if not isinstance(episodes, (int, np.integer)) or isinstance(episodes, bool) or episodes < 1:
         raise ValueError(f"episodes must be a positive int, got {episodes!r}")
     seed = _check_seed(seed)

@@ -115,9 +115,10 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
         ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a
         :class:`~smac_hard_gym.smac.features.SmacOptions` or dict) and any SMAC observation/reward option as a
         keyword (``reward_sparse=True``, ...);
-        ``opponent_isolation`` (``"guard"``, the default: user scripts run in-process on a read-only copy of the state
-        under a time limit; ``"process"``: in a child process that a hang, crash or exit cannot take down; ``"none"``;
-        docs/script_isolation.md).
+        ``opponent_isolation`` (None, the default: a script loaded from a file or module runs in a child process,
+        a Script object you built runs in-process under the guard; ``"process"``: in a child process that a hang,
+        crash or exit cannot take down; ``"guard"``: in-process on a read-only copy of the state under a time limit,
+        a bug catcher, not a security boundary; ``"none"``; docs/script_isolation.md).
 
     Version History
         v0: first version.
@@ -130,7 +131,7 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
                  opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
                  invalid_action: str = "noop", render_mode: str | None = None, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
-                 opponent_isolation: str = "guard", **smac_options: Any) -> None:
+                 opponent_isolation: str | None = None, **smac_options: Any) -> None:
         check_invalid_action(invalid_action)
         if obs_mode not in OBS_MODES:
             raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")

@@ -108,7 +108,7 @@ class StarCraft2Env:
         strategy_prob: Sequence[float] | None = None,
         backend: str = "native",
         backend_options: dict | None = None,
-        opponent_isolation: str = "guard",
+        opponent_isolation: str | None = None,
     ) -> None:
         if mode not in _MODE_ALIASES:
             raise ValueError(f"mode must be one of {sorted(_MODE_ALIASES)}, got {mode!r}")

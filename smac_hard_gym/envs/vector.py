@@ -70,7 +70,7 @@ class NativeVectorEnv(VectorEnv):
                  invalid_action: str = "noop", render_mode: str | None = None,
                  render_battles: int | Sequence[int] | str = 0, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
-                 opponent_isolation: str = "guard", **smac_options: Any) -> None:
+                 opponent_isolation: str | None = None, **smac_options: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
         check_invalid_action(invalid_action)
