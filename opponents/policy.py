@@ -9,6 +9,19 @@ same options as the learner's env by default), asks the policy for one action pe
 action by the agent's first available one, and decodes the actions into engine commands exactly as the learner's
 are. It keeps its own last actions per battle, so observations and states that include last actions are right.
 
+A policy is checked like a script (:mod:`smac_hard_gym.opponents.guard`): its actions go through the same validator
+as a learner's (:func:`~smac_hard_gym.smac.actions.validate_actions`: ints, or floats with an integral value, in
+``0..n_actions-1``, of shape (battles, agents)); bools, strings, NaN, fractional or out-of-range values and a wrong
+shape raise a :class:`~smac_hard_gym.opponents.api.ScriptError` naming the policy, the value and the allowed range
+(an in-range action that is merely unavailable is not an error: it becomes the agent's first legal one, as above).
+The call runs under the guard's time limit (``time_limit``, :data:`~smac_hard_gym.opponents.guard.DEFAULT_TIME_LIMIT`
+seconds by default, None for none), and an exception it raises becomes a ScriptError too (Ctrl-C still stops the
+program).
+
+Loading a saved model (``PolicyScript.load("model.zip")``, or ``opponent="path/model.zip"`` anywhere an opponent is
+named) unpickles the file, as stable-baselines3 loads every model: it runs whatever code the file holds. Load only
+files you trust.
+
 What a policy may be (:func:`as_policy`):
 
 - a function ``f(obs, masks) -> actions``: ``obs`` float32 ``(R, n_agents, obs_size)``, ``masks`` bool
@@ -23,6 +36,7 @@ What a policy may be (:func:`as_policy`):
 from __future__ import annotations
 
 import inspect
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -30,8 +44,10 @@ from typing import Any
 import numpy as np
 
 from smac_hard_gym.engine.state import Commands
-from smac_hard_gym.opponents.api import Script, SideView
-from smac_hard_gym.smac.features import SideFeatures, SmacOptions
+from smac_hard_gym.opponents.api import Script, ScriptError, SideView
+from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT, _run_limited
+from smac_hard_gym.smac.actions import validate_actions
+from smac_hard_gym.smac.features import SIDE_NAMES, SideFeatures, SmacOptions
 from smac_hard_gym.smac.kernels import check_decode_batch
 
 __all__ = ["PolicyScript", "as_policy", "is_policy_file"]
@@ -103,14 +119,23 @@ class PolicyScript(Script):
     """A trained policy (or any function of observations and masks) playing one side; see the module docstring.
 
     ``options``: the SMAC options the policy was trained with (default: SMAC's defaults, what the envs use unless
-    told otherwise). ``name`` names it in infos and statistics.
+    told otherwise). ``name`` names it in infos and statistics. ``time_limit``: seconds one call of the policy may
+    take (the guard's watchdog interrupts it past that; None: no limit).
+
+    Actions the policy returns are validated as a learner's are; invalid ones, exceptions and overrunning the time
+    limit raise :class:`~smac_hard_gym.opponents.api.ScriptError` (see the module docstring).
     """
 
     description = "a trained policy: SMAC observations and masks of its side in, one action per agent out"
 
-    def __init__(self, policy: Any, name: str = "policy", options: SmacOptions | None = None) -> None:
+    def __init__(self, policy: Any, name: str = "policy", options: SmacOptions | None = None,
+                 time_limit: float | None = DEFAULT_TIME_LIMIT) -> None:
         if not isinstance(name, str) or not name:
             raise ValueError(f"name must be a non-empty string, got {name!r}")
+        if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
+                                       or not time_limit > 0 or time_limit != time_limit):
+            raise ValueError(f"time_limit must be a positive number of seconds or None, got {time_limit!r}")
+        self.time_limit = None if time_limit is None else float(time_limit)
         self.policy = policy
         self._act = as_policy(policy)
         self.name = name
@@ -119,8 +144,14 @@ class PolicyScript(Script):
         self.last_action = np.zeros((0, 0), dtype=np.int64)
 
     @classmethod
-    def load(cls, path: str | Path, name: str | None = None, options: SmacOptions | None = None) -> PolicyScript:
-        """A saved MaskablePPO model (``model.zip``; needs the ``[train]`` extra) as an opponent."""
+    def load(cls, path: str | Path, name: str | None = None, options: SmacOptions | None = None,
+             time_limit: float | None = DEFAULT_TIME_LIMIT) -> PolicyScript:
+        """A saved MaskablePPO model (``model.zip``; needs the ``[train]`` extra) as an opponent.
+
+        Security: a ``model.zip`` holds pickled Python objects, and stable-baselines3 unpickles them to load the
+        model, so loading a file runs whatever code its author put in it. Load only files you trust (the same holds
+        for ``opponent="path/model.zip"``, which calls this).
+        """
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"no saved model at {str(path)!r} (an opponent ending in .zip is a saved "
@@ -130,8 +161,15 @@ class PolicyScript(Script):
         except ImportError as err:
             raise ImportError("loading a model as an opponent needs the [train] extra: "
                               "pip install 'smac-hard-gym[train]'") from err
-        model = MaskablePPO.load(str(path), device="cpu")
-        return cls(model, name=name or f"model:{path.stem}", options=options)
+        try:
+            model = MaskablePPO.load(str(path), device="cpu")
+        except MemoryError:
+            raise
+        except Exception as err:  # a truncated zip, random bytes, another library's pickle: whatever SB3 raises
+            detail = " ".join(str(err).split())
+            raise ValueError(f"{str(path)!r} is not a saved MaskablePPO model ({type(err).__name__}"
+                             f"{': ' + detail if detail else ''})") from None
+        return cls(model, name=name or f"model:{path.stem}", options=options, time_limit=time_limit)
 
     def features(self, view: SideView) -> SideFeatures:
         """This side's features on the view's map (built once per map and side)."""
@@ -152,13 +190,10 @@ class PolicyScript(Script):
             return
         feats = self.features(view)
         masks, obs, state = feats.encode(view.state, self.last_action, view.episode_step, rows=rows)
-        actions = np.asarray(self._act(obs, masks, state)).astype(np.int64, copy=False)
-        if actions.shape != masks.shape[:2]:
-            raise ValueError(f"policy {self.name!r} returned actions of shape {actions.shape}, expected "
-                             f"{masks.shape[:2]} (battles, agents)")
+        actions = self._validated(self._call(view, obs, masks, state), view, feats, rows)
         batch = view.batch_size
         played = np.zeros((batch, feats.n_agents), dtype=np.int64)
-        played[rows] = np.clip(actions, 0, feats.n_actions - 1)
+        played[rows] = actions
         legal = np.ones((batch, feats.n_agents, feats.n_actions), dtype=bool)  # rows not active are not read
         legal[rows] = masks
         # The learner's way down: a policy that ignores masks still plays legally (an unavailable action becomes the
@@ -166,3 +201,35 @@ class PolicyScript(Script):
         check_decode_batch(played, legal, active, True, np.zeros(batch, dtype=np.int64), view.state.x, view.state.y,
                            commands.kind, commands.target, commands.x, commands.y, *feats.decode_args)
         self.last_action[rows] = played[rows]
+
+    def _call(self, view: SideView, obs: np.ndarray, masks: np.ndarray, state: np.ndarray | None) -> Any:
+        """The policy's answer for ``obs``/``masks``, under the time limit; its failures raise ScriptError."""
+        out: list[Any] = []
+        start = time.perf_counter()
+        try:
+            timed_out = _run_limited(self.time_limit, lambda: out.append(self._act(obs, masks, state)), ())
+        except ScriptError:
+            raise
+        except SystemExit as err:
+            raise ScriptError(self.name, view.spec.name, f"the policy called sys.exit({err.code!r})") from None
+        except Exception as err:
+            raise ScriptError(self.name, view.spec.name, f"the policy raised {type(err).__name__}: {err}") from err
+        if timed_out:
+            raise ScriptError(self.name, view.spec.name, f"the policy ran past its time limit of "
+                              f"{self.time_limit:g} s and was interrupted")
+        elapsed = time.perf_counter() - start
+        if self.time_limit is not None and elapsed > self.time_limit:
+            raise ScriptError(self.name, view.spec.name, f"the policy took {elapsed:.3g} s, over its time limit of "
+                              f"{self.time_limit:g} s")
+        return out[0]
+
+    def _validated(self, actions: Any, view: SideView, feats: SideFeatures, rows: np.ndarray) -> np.ndarray:
+        """``actions`` checked as a learner's are (:func:`validate_actions`), as int64 ``(len(rows), n_agents)``."""
+        shape = (len(rows), feats.n_agents)
+        try:
+            return validate_actions(actions, shape, feats.n_actions, SIDE_NAMES[view.side])
+        except (TypeError, ValueError) as err:
+            where = (f"one row per active battle, in order, {len(rows)} rows" if len(rows) > 1
+                     else f"battle {int(rows[0])}")
+            raise ScriptError(self.name, view.spec.name, f"the policy returned invalid actions: {err} (expected "
+                              f"ints 0..{feats.n_actions - 1} of shape {shape} (battles, agents); {where})") from None

@@ -12,6 +12,7 @@ import pytest
 from smac_hard_gym.engine.state import BLUE, RED
 from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.opponents import make_opponent
+from smac_hard_gym.opponents.api import ScriptError
 from smac_hard_gym.opponents.league import League
 from smac_hard_gym.opponents.policy import PolicyScript
 
@@ -84,7 +85,7 @@ def test_policies_mix_with_scripts_and_bad_policies_are_named():
     core = TwoPlayerCore("3m", 64, opponent=opponent, seed=1)
     assert set(core.opponent_names()) == {"base", "attack_first"}
     bad = TwoPlayerCore("3m", 1, opponent=PolicyScript(lambda obs, masks: np.zeros(5), "bad"), seed=0)
-    with pytest.raises(ValueError, match="policy 'bad' returned actions of shape"):
+    with pytest.raises(ScriptError, match=r"'bad' .*invalid actions: blue actions must have shape \(1, 3\)"):
         bad.step(np.ones((1, 3), dtype=np.int64))
     with pytest.raises(TypeError, match="a policy is a function"):
         PolicyScript(42)
