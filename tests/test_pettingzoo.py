@@ -234,3 +234,73 @@ def test_import_stays_light():
     code = "import sys, smac_hard_gym; assert 'pettingzoo' not in sys.modules; print('ok')"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "ok"
+
+
+BAD_ACTIONS = [True, False, np.bool_(True), np.array(True), "1", None, 1.5, float("nan"), float("inf"), -1, 9, 2**70,
+               [1], np.array([1])]
+
+
+def _same_step(a, b):
+    """Two step results (parallel API) are equal, arrays compared by value."""
+    for x, y in zip(a, b, strict=True):
+        assert x.keys() == y.keys()
+        for key in x:
+            if isinstance(x[key], dict):
+                for k in x[key]:
+                    np.testing.assert_array_equal(x[key][k], y[key][k])
+            else:
+                assert x[key] == y[key]
+
+
+@pytest.mark.parametrize("teams", ["red", "both"])
+@pytest.mark.parametrize("bad", BAD_ACTIONS, ids=repr)
+def test_each_agent_action_is_checked_on_its_own_and_a_rejection_changes_nothing(teams, bad):
+    env, twin = parallel_env("3m", teams=teams), parallel_env("3m", teams=teams)
+    env.reset(seed=4)
+    twin.reset(seed=4)
+    valid = {agent: 1 for agent in env.agents}
+    victim = env.agents[-1]  # the last agent: every other one is a plain valid int (or float) before it
+    for mix in ({**valid, victim: bad}, {**{a: 1.0 for a in env.agents}, victim: bad},
+                {**{a: np.int64(1) for a in env.agents}, victim: bad}, {**valid, env.agents[0]: bad}):
+        name = next(a for a in mix if mix[a] is bad)
+        with pytest.raises((TypeError, InvalidActionError)) as info:
+            env.step(mix)
+        message = str(info.value)
+        assert message.startswith(f"{name}:"), message
+        shown = repr(bad.item() if isinstance(bad, np.generic) or (isinstance(bad, np.ndarray) and bad.ndim == 0)
+                     else bad)
+        assert shown in message or repr(bad) in message, message
+    assert env.core.episode_step[0] == 0
+    for _ in range(3):  # afterwards the env plays exactly as one that never saw the bad actions
+        _same_step(env.step(valid), twin.step(valid))
+
+
+def test_mixed_bools_are_rejected_exactly_as_reported():
+    env, twin = parallel_env("3m"), parallel_env("3m")
+    env.reset(seed=0)
+    twin.reset(seed=0)
+    with pytest.raises(TypeError, match="red_0: action True is a bool; actions are ints 0..8"):
+        env.step({"red_0": True, "red_1": 1, "red_2": 1})
+    with pytest.raises(TypeError, match="red_1: action True is a bool"):
+        env.step({"red_0": 1.0, "red_1": True, "red_2": 1})
+    _same_step(env.step({"red_0": 1, "red_1": 1, "red_2": 1}), twin.step({"red_0": 1, "red_1": 1, "red_2": 1}))
+
+
+@pytest.mark.parametrize("bad", [True, np.bool_(False), "1", None, 2.5, float("nan"), 99, -1], ids=repr)
+def test_aec_checks_each_action_when_given_and_keeps_its_turn(bad):
+    env, twin = aec_env("3m", teams="both"), aec_env("3m", teams="both")
+    env.reset(seed=2)
+    twin.reset(seed=2)
+    env.step(1)
+    twin.step(1)
+    turn = env.agent_selection
+    with pytest.raises((TypeError, InvalidActionError), match=f"^{turn}: action"):
+        env.step(bad)
+    assert env.agent_selection == turn  # still this agent's turn, nothing collected
+    for _ in range(2 * len(env.possible_agents)):
+        env.step(1)
+        twin.step(1)
+        assert env.agent_selection == twin.agent_selection
+        np.testing.assert_array_equal(env.observe(env.agent_selection)["observation"],
+                                      twin.observe(twin.agent_selection)["observation"])
+        assert env.last()[1:4] == twin.last()[1:4]

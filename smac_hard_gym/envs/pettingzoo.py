@@ -14,7 +14,8 @@ import numpy as np
 
 try:
     from pettingzoo import ParallelEnv
-    from pettingzoo.utils.conversions import parallel_to_aec
+    from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+    from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 except ImportError as err:  # the extra is not installed: say which one
     raise ImportError("smac_hard_gym.pettingzoo needs PettingZoo: pip install 'smac-hard-gym[pettingzoo]'") from err
 from gymnasium import spaces
@@ -24,10 +25,10 @@ from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.envs.gym_env import RAISE_HINT, RENDER_FPS, check_invalid_action, keywords_of, make_options
 from smac_hard_gym.envs.joint_view import OBS_LOW, state_high
 from smac_hard_gym.envs.one_battle import RendersOneBattle
-from smac_hard_gym.smac.actions import ResetNeededError, raise_unavailable, validate_actions
+from smac_hard_gym.smac.actions import InvalidActionError, ResetNeededError, raise_unavailable, validate_actions
 from smac_hard_gym.smac.features import BLUE_WON, RED_WON, SIDE_NAMES, SmacOptions
 
-__all__ = ["SMACHardParallelEnv", "parallel_env", "env", "TEAMS"]
+__all__ = ["SMACHardParallelEnv", "parallel_env", "env", "TEAMS", "check_agent_action"]
 
 TEAMS = ("red", "both")  # the first is the default
 _PZ_HINT = RAISE_HINT.replace("(gymnasium.make(id, invalid_action='noop'))",
@@ -93,7 +94,7 @@ class SMACHardParallelEnv(RendersOneBattle, ParallelEnv):
                  opponent_probs: Sequence[float] | None = None, invalid_action: str = "noop",
                  seed: int | None = None, render_mode: str | None = None, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
-                 opponent_isolation: str = "guard", **smac_options: Any) -> None:
+                 opponent_isolation: str | None = None, **smac_options: Any) -> None:
         if not isinstance(teams, str) or teams not in TEAMS:
             raise ValueError(f"teams must be one of {TEAMS}, got {teams!r}")
         check_invalid_action(invalid_action)
@@ -272,9 +273,17 @@ class SMACHardParallelEnv(RendersOneBattle, ParallelEnv):
                 break
         else:
             return np.array(row, dtype=np.int64)
-        arr = np.array(row) if type(row[0]) is not int else None  # numpy scalars, 0-d arrays: one array
-        checked = arr if arr is not None and arr.dtype.kind in "iuf" and arr.ndim == 1 else row
-        return validate_actions(checked, (self._n[side],), n_actions, SIDE_NAMES[side])
+        # Each agent's action on its own, before any conversion: np.array over a mix of bools and ints (or floats)
+        # would turn True into 1 (or 1.0) and hide it from the check.
+        return np.array([check_agent_action(name, action, n_actions) if is_live else 0
+                         for name, action, is_live in zip(names, row, live, strict=True)], dtype=np.int64)
+
+    def check_action(self, agent: str, action: Any) -> int:
+        """``agent``'s action checked on its own (see :func:`check_agent_action`), as an int; nothing changes."""
+        if agent not in self._possible:
+            raise ValueError(f"unknown agent {agent!r}; the agents are {self.possible_agents}")
+        side = BLUE if agent.startswith(SIDE_NAMES[BLUE]) else RED
+        return check_agent_action(agent, action, self._n_actions[side])
 
     def _blue_actions(self, blue: np.ndarray) -> tuple[np.ndarray, int]:
         """Blue's actions with unavailable ones replaced (``"noop"``) or rejected (``"raise"``)."""
@@ -314,11 +323,46 @@ class SMACHardParallelEnv(RendersOneBattle, ParallelEnv):
         self.core.encode_state = True  # as in state()
         return self.core.global_state(SIDE_NAMES.index(team))[0]
 
+def check_agent_action(name: str, action: Any, n_actions: int) -> int:
+    """One agent's action, checked on its own as every API checks actions (:func:`validate_actions`): a Python or
+    NumPy int, a 0-d integer array, or a float with an integral value, in ``0..n_actions-1``. Bools (NumPy's too),
+    strings, None, sequences, fractional floats, NaN and out-of-range values raise ``TypeError`` or
+    :class:`~smac_hard_gym.smac.actions.InvalidActionError` naming the agent and the value."""
+    if type(action) is int and 0 <= action < n_actions:
+        return action
+    value = action
+    if isinstance(value, np.ndarray):
+        if value.ndim != 0:
+            raise InvalidActionError(f"{name}: action {action!r} is an array of shape {value.shape}; each agent "
+                                     f"takes one int 0..{n_actions - 1}")
+        value = value[()]  # the NumPy scalar, its type kept (a 0-d bool array stays a bool)
+    if isinstance(value, (list, tuple, dict, set, frozenset)):
+        raise TypeError(f"{name}: action {action!r} is a {type(value).__name__}; each agent takes one int "
+                        f"0..{n_actions - 1}")
+    try:
+        return int(validate_actions([value], (1,), n_actions, name)[0])
+    except (TypeError, InvalidActionError) as err:  # "<name> agent 0: action ... " -> "<name>: action ..."
+        detail = str(err).split(": ", 1)[-1]
+        raise type(err)(f"{name}: {detail}") from None
+
+
+class _CheckedAEC(parallel_to_aec_wrapper):
+    """PettingZoo's AEC view of the parallel env, checking each agent's action when it is given: a bad one raises
+    at once and leaves the turn order and the actions collected so far as they were."""
+
+    def step(self, action: Any) -> None:
+        agent = self.agent_selection
+        if not (self.terminations[agent] or self.truncations[agent]):  # a done agent's step takes None
+            self.env.check_action(agent, action)
+        super().step(action)
+
+
 def parallel_env(map_name: str = "3m", **kwargs: Any) -> SMACHardParallelEnv:
     """A :class:`SMACHardParallelEnv` (PettingZoo's ``parallel_env`` door); keywords as the class takes them."""
     return SMACHardParallelEnv(map_name, **kwargs)
 
 
 def env(map_name: str = "3m", **kwargs: Any):
-    """The same env as PettingZoo's turn-based ``AECEnv`` (``parallel_to_aec`` over :func:`parallel_env`)."""
-    return parallel_to_aec(parallel_env(map_name, **kwargs))
+    """The same env as PettingZoo's turn-based ``AECEnv`` (``parallel_to_aec`` over :func:`parallel_env`, with each
+    agent's action checked when it is given)."""
+    return OrderEnforcingWrapper(_CheckedAEC(parallel_env(map_name, **kwargs)))
