@@ -366,3 +366,116 @@ def test_rendering_is_not_on_the_engine_step_path():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Malformed recordings: every one gives the CLI's one-line error (exit 2), never a traceback.
+
+
+def _arrays(path):
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+def _malformed(tmp_path, good):
+    """(name, writer) pairs: each writes one malformed recording to the path it is given."""
+    def edit(**changes):
+        def write(path):
+            arrays = _arrays(good)
+            for key, change in changes.items():
+                arrays[key] = change(arrays[key])
+            with open(path, "wb") as handle:
+                np.savez(handle, **arrays)
+        return write
+
+    def at(value, dtype=np.float64):
+        def change(a):
+            a = a.astype(dtype)
+            a[3, 1] = value
+            return a
+        return change
+
+    data = good.read_bytes()
+    return [
+        ("empty", lambda p: p.write_bytes(b"")),
+        ("random bytes", lambda p: p.write_bytes(np.random.default_rng(0).bytes(4096))),
+        ("truncated", lambda p: p.write_bytes(data[: len(data) // 2])),
+        ("zip of junk", lambda p: p.write_bytes(data[:200] + b"\0" * 300)),
+        ("huge position", edit(x=at(1e300))),
+        ("nan position", edit(y=at(np.nan, np.float32))),
+        ("inf position", edit(x=at(np.inf, np.float32))),
+        ("outside the map", edit(x=at(1e6, np.float32))),
+        ("negative health", edit(health=at(-5.0, np.float32))),
+        ("nan health", edit(health=at(np.nan, np.float32))),
+        ("huge shield", edit(shield=at(1e30))),
+        ("bad fired_at", edit(fired_at=at(99, np.int16))),
+        ("wrong shape", edit(x=lambda a: a[:, :2])),
+        ("wrong side", edit(side=lambda a: np.full_like(a, 7))),
+        ("string positions", edit(x=lambda a: a.astype(str))),
+        ("bad terrain", edit(pathable=lambda a: a[:3])),
+        ("no frames", edit(**{k: (lambda a: a[:0]) for k in ("loop", "step", "opponent", "x", "y", "health",
+                                                             "shield", "energy", "alive", "burst", "fired_at",
+                                                             "rewards", "commands.kind", "commands.target",
+                                                             "commands.x", "commands.y")})),
+        ("bad opponent index", edit(opponent=lambda a: np.full_like(a, 40))),
+        ("bad meta", edit(meta=lambda a: np.frombuffer(b'{"format": "smac-hard-gym-episode", "version": 1, '
+                                                      b'"map": 3, "size": [1e300, -1]}', dtype=np.uint8))),
+        ("meta not json", edit(meta=lambda a: np.frombuffer(b"\xff\xfe{", dtype=np.uint8))),
+    ]
+
+
+def test_replay_of_malformed_files_is_one_clean_line(tmp_path, capsys):
+    from smac_hard_gym import cli
+
+    good, _, _ = _play_and_record(tmp_path)
+    for name, write in _malformed(tmp_path, good):
+        path = tmp_path / f"bad-{name.replace(' ', '_')}.npz"
+        write(path)
+        with pytest.raises(EpisodeError):
+            load_episode(path)
+        out = tmp_path / f"bad-{name.replace(' ', '_')}.gif"
+        assert cli.main(["replay", str(path), "--out", str(out)]) == 2, name
+        err = capsys.readouterr().err
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("smac-hard-gym replay: error: "), (name, err)
+        assert "Traceback" not in err and str(path) in err, (name, err)
+        assert not out.exists(), name
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_recording_save_is_atomic(tmp_path, monkeypatch):
+    good, _, _ = _play_and_record(tmp_path)
+    before = good.read_bytes()
+    recorder = EpisodeRecorder("3m")
+    recorder.capture(BattleEngine("3m").state)
+
+    def half_then_fail(file, **arrays):
+        file.write(b"PK\x03\x04 half an archive")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez_compressed", half_then_fail)
+    with pytest.raises(OSError, match="disk full"):
+        recorder.save(good)
+    assert good.read_bytes() == before  # the old recording, whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == [good.name]  # no temporary file left
+    monkeypatch.undo()
+    recorder.save(good)
+    assert len(load_episode(good)) == 1 and sorted(p.name for p in tmp_path.iterdir()) == [good.name]
+
+
+def test_replay_video_is_written_atomically(tmp_path, monkeypatch):
+    from smac_hard_gym import cli
+    from smac_hard_gym.render import video
+
+    good, _, _ = _play_and_record(tmp_path)
+    out = tmp_path / "battle.gif"
+    out.write_bytes(b"old video")
+
+    def broken(frames, path, fps):
+        path.write_bytes(b"GIF89a half")
+        raise ValueError("encoder died")
+
+    monkeypatch.setitem(video._WRITERS, ".gif", broken)
+    assert cli.main(["replay", str(good), "--out", str(out)]) == 2
+    assert out.read_bytes() == b"old video"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([good.name, out.name])

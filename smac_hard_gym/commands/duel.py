@@ -31,9 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
-
     from smac_hard_gym.envs.duel import run_duel
+    from smac_hard_gym.files import write_json
     from smac_hard_gym.opponents import opponent_from_text
 
     batch = args.batch if args.batch is not None else min(args.episodes, 64)
@@ -51,8 +50,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {pairing}: {counts['games']} games, red {counts['red_wins']}, blue {counts['blue_wins']}, "
                   f"draws {counts['draws']}")
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(result.to_dict(), fh, indent=1)
+        write_json(args.json, result.to_dict(), indent=1)
         print(f"wrote {args.json}")
     if args.record:
         _record(args)

@@ -20,6 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from smac_hard_gym.files import atomic_path
     from smac_hard_gym.render import VIDEO_FORMATS, BattleRenderer, EpisodeError, load_episode, write_video
 
     out = Path(args.out) if args.out else Path(args.file).with_suffix(".gif")
@@ -33,8 +34,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"replay {args.file}: map {episode.map_name}, {len(episode)} frames, "
               f"opponent {', '.join(episode.opponents) or 'unknown'} -> {out} "
               f"({renderer.frame_shape[1]}x{renderer.frame_shape[0]}, {args.fps:g} fps)")
-        write_video(episode.render(renderer), out, fps=args.fps)
-    except (EpisodeError, FileNotFoundError, ImportError, ValueError) as err:
+        if not out.parent.is_dir():
+            raise FileNotFoundError(f"folder {str(out.parent)!r} for --out does not exist")
+        with atomic_path(out) as tmp:  # a video stopped halfway never replaces the target
+            write_video(episode.render(renderer), tmp, fps=args.fps)
+    except (EpisodeError, FileNotFoundError, ImportError, ValueError, OverflowError) as err:
         print(f"smac-hard-gym replay: error: {err}", file=sys.stderr)
         return 2
     print(f"wrote {out}")

@@ -16,9 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
-
     from smac_hard_gym.envs.solutions import check_claim
+    from smac_hard_gym.files import write_json
     from smac_hard_gym.opponents.known_solutions import claims_for_map
 
     if args.episodes < 1:
@@ -37,6 +36,5 @@ def run(args: argparse.Namespace) -> int:
                      "holds": verdict.holds, "episodes": args.episodes,
                      "seed": args.seed})
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(rows, fh, indent=1)
+        write_json(args.json, rows, indent=1)
     return 1 if failed else 0

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import os
-import zipfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from smac_hard_gym.engine.state import BLUE, RED, Commands
+from smac_hard_gym.files import atomic_write
 from smac_hard_gym.units import UNITS, unit_index
 
 FORMAT = "smac-hard-gym-episode"
@@ -232,7 +232,11 @@ class EpisodeRecorder:
             path = path.with_name(path.name + ".npz")
         if not path.parent.exists():
             raise FileNotFoundError(f"folder {str(path.parent)!r} for episode file {path.name!r} does not exist")
-        np.savez_compressed(path, **self.arrays())
+        arrays = self.arrays()
+        # A temporary file in the same folder, moved over ``path`` once complete: a kill mid-write leaves the old
+        # file (or none), never half an archive.
+        with atomic_write(path, "wb") as handle:
+            np.savez_compressed(handle, **arrays)
         return path
 
 
@@ -288,18 +292,104 @@ def _stack_padded(frames: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
     return out
 
 
+MAX_STAT = 1e6  # health, shield and energy above this are not a battle's (a unit's maximum is in the hundreds)
+EDGE = 1.0  # positions may lie this far outside the map (the engine keeps units on it)
+
+
+def _check_meta(meta: dict[str, Any], source: str) -> None:
+    """The ``meta`` entry's fields have the types and ranges a recording writes."""
+    def bad(key: str, expected: str) -> EpisodeError:
+        return EpisodeError(f"{source}: malformed 'meta' entry ({key} is {meta.get(key)!r}, expected {expected})")
+
+    if not isinstance(meta.get("map"), str):
+        raise bad("map", "a map name")
+    size = meta.get("size")
+    if not (isinstance(size, list) and len(size) == 2 and all(type(v) is int and 0 < v <= 4096 for v in size)):
+        raise bad("size", "two positive ints")
+    if type(meta.get("step_mul")) is not int or not 0 < meta["step_mul"] <= 10_000:
+        raise bad("step_mul", "a positive int")
+    for key in ("unit_names", "opponents", "actions"):
+        value = meta.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise bad(key, "a list of strings")
+    if not isinstance(meta.get("metadata", {}), dict):
+        raise bad("metadata", "an object")
+
+
+def _check_array(arrays: Mapping[str, np.ndarray], name: str, shape: tuple[int, ...] | None, kinds: str,
+                 source: str) -> np.ndarray:
+    """``arrays[name]`` checked to be an array of ``shape`` (when given; ``-1`` matches any length) whose dtype kind
+    is in ``kinds``."""
+    value = arrays[name]
+    if not isinstance(value, np.ndarray):
+        raise EpisodeError(f"{source}: {name} is not an array")
+    if value.dtype.kind not in kinds:
+        names = {"b": "bool", "i": "int", "u": "unsigned int", "f": "float"}
+        raise EpisodeError(f"{source}: {name} has dtype {value.dtype}, expected "
+                           f"{' or '.join(names[k] for k in kinds)}")
+    if shape is not None and (value.ndim != len(shape)
+                              or any(want not in (-1, got) for want, got in zip(shape, value.shape, strict=True))):
+        raise EpisodeError(f"{source}: {name} has shape {value.shape}, expected "
+                           f"{tuple('any' if v == -1 else v for v in shape)}")
+    return value
+
+
+def _check_range(value: np.ndarray, name: str, low: float, high: float, source: str) -> None:
+    """Every element of ``value`` is a number in ``low..high`` (NaN and infinities are not)."""
+    with np.errstate(invalid="ignore"):
+        bad = ~((value >= low) & (value <= high))
+    if bad.any():
+        index = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise EpisodeError(f"{source}: {name}{list(index)} is {value[index].item()!r}, out of range "
+                           f"({low:g}..{high:g})")
+
+
+def _check_arrays(arrays: Mapping[str, np.ndarray], meta: dict[str, Any], n_units: int, source: str) -> None:
+    """Every entry has the shape, type and physical range a recording writes (a recording with positions of 1e300
+    or negative health is as malformed as a truncated one)."""
+    size = tuple(meta["size"])
+    n_frames = len(_check_array(arrays, "loop", (-1,), "iu", source))
+    if n_frames == 0:
+        raise EpisodeError(f"{source}: the episode has no frames")
+    _check_range(arrays["loop"], "loop", 0, 2**62, source)
+    _check_range(_check_array(arrays, "step", (n_frames,), "iu", source), "step", 0, 2**62, source)
+    _check_range(_check_array(arrays, "side", (n_units,), "biu", source), "side", RED, BLUE, source)
+    _check_range(_check_array(arrays, "opponent", (n_frames,), "iu", source), "opponent", -1,
+                 len(meta["opponents"]) - 1, source)
+    _check_range(_check_array(arrays, "pathable", size, "biu", source), "pathable", 0, 1, source)
+    _check_range(_check_array(arrays, "cliff", size, "iuf", source), "cliff", -1e3, 1e3, source)
+    frame = (n_frames, n_units)
+    for name in ("x", "y"):
+        axis_size = size[0] if name == "x" else size[1]
+        _check_range(_check_array(arrays, name, frame, "iuf", source), name, -EDGE, axis_size + EDGE, source)
+    for name in ("health", "shield", "energy"):
+        _check_range(_check_array(arrays, name, frame, "iuf", source), name, 0, MAX_STAT, source)
+    for name in ("alive", "burst"):
+        _check_range(_check_array(arrays, name, frame, "biu", source), name, 0, 1, source)
+    _check_range(_check_array(arrays, "fired_at", frame, "iu", source), "fired_at", -1, n_units - 1, source)
+    if "rewards" in arrays:
+        rewards = _check_array(arrays, "rewards", (n_frames, -1), "iuf", source)
+        if np.isinf(rewards).any():
+            raise EpisodeError(f"{source}: rewards holds an infinite value")
+    for key in meta.get("actions", []):
+        value = _check_array(arrays, key, None, "biuf", source)
+        if value.ndim == 0 or value.shape[0] != n_frames:
+            raise EpisodeError(f"{source}: {key} has shape {value.shape}, expected {n_frames} frames first")
+
+
 def _episode_from_arrays(arrays: Mapping[str, np.ndarray], source: str) -> Episode:
     if "meta" not in arrays:
         raise EpisodeError(f"{source}: not an episode file (no 'meta' entry)")
     try:
         meta = json.loads(bytes(np.asarray(arrays["meta"], dtype=np.uint8)).decode())
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+    except (UnicodeDecodeError, ValueError, TypeError, OverflowError, RecursionError) as err:
         raise EpisodeError(f"{source}: unreadable 'meta' entry ({err})") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise EpisodeError(f"{source}: not an episode file (format is not {FORMAT!r})")
     if meta.get("version") != FORMAT_VERSION:
         raise EpisodeError(f"{source}: episode format version {meta.get('version')!r}; this install reads "
                            f"version {FORMAT_VERSION}")
+    _check_meta(meta, source)
     required = ["side", "pathable", "cliff", "loop", "step", "opponent", *UNIT_FIELDS]
     missing = [k for k in required if k not in arrays]
     if missing:
@@ -308,26 +398,21 @@ def _episode_from_arrays(arrays: Mapping[str, np.ndarray], source: str) -> Episo
         utype = np.array([unit_index(n) for n in meta["unit_names"]], dtype=np.int32)
     except KeyError as err:
         raise EpisodeError(f"{source}: {err.args[0]}") from None
-    side = np.asarray(arrays["side"], dtype=np.int8)
-    n_frames, n_units = len(arrays["loop"]), len(utype)
-    for name in UNIT_FIELDS:
-        if arrays[name].shape != (n_frames, n_units):
-            raise EpisodeError(f"{source}: {name} has shape {arrays[name].shape}, expected {(n_frames, n_units)}")
-    for name in ("step", "opponent"):
-        if arrays[name].shape != (n_frames,):
-            raise EpisodeError(f"{source}: {name} has shape {arrays[name].shape}, expected {(n_frames,)}")
-    terrain = MapTerrain(meta["map"], tuple(meta["size"]), np.asarray(arrays["pathable"], dtype=bool),
-                         np.asarray(arrays["cliff"], dtype=np.float64))
     missing = [k for k in meta.get("actions", []) if k not in arrays]
     if missing:
         raise EpisodeError(f"{source}: missing action entries {', '.join(missing)}")
+    _check_arrays(arrays, meta, len(utype), source)
+    side = np.asarray(arrays["side"], dtype=np.int8)
+    terrain = MapTerrain(meta["map"], tuple(meta["size"]), np.asarray(arrays["pathable"], dtype=bool),
+                         np.asarray(arrays["cliff"], dtype=np.float64))
     actions = {k: np.asarray(arrays[k]) for k in meta.get("actions", [])}
     return Episode(
         terrain=terrain, step_mul=int(meta["step_mul"]), unit_names=tuple(meta["unit_names"]), utype=utype,
-        side=side, loop=np.asarray(arrays["loop"]), step=np.asarray(arrays["step"]),
-        units={name: np.asarray(arrays[name]) for name in UNIT_FIELDS},
+        side=side, loop=np.asarray(arrays["loop"], dtype=np.int64), step=np.asarray(arrays["step"], dtype=np.int64),
+        units={name: np.asarray(arrays[name], dtype=dtype) for name, dtype in UNIT_FIELDS.items()},
         rewards=np.asarray(arrays["rewards"]) if "rewards" in arrays else None,
-        opponent=np.asarray(arrays["opponent"]), opponents=tuple(meta["opponents"]), actions=actions,
+        opponent=np.asarray(arrays["opponent"], dtype=np.int64), opponents=tuple(meta["opponents"]),
+        actions=actions,
         metadata=dict(meta.get("metadata", {})),
     )
 
@@ -337,14 +422,31 @@ def load_episode(path: str | os.PathLike) -> Episode:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"episode file {str(path)!r} does not exist")
+    if path.stat().st_size == 0:
+        raise EpisodeError(f"{path}: not an episode file (the file is empty)")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except (zipfile.BadZipFile, ValueError, OSError) as err:
-        raise EpisodeError(f"{path}: not an episode file ({err})") from None
-    if not isinstance(arrays, dict):
+        data = np.load(path, allow_pickle=False)
+    except Exception as err:  # truncated, random bytes, a pickle: whatever numpy raises on it
+        raise EpisodeError(f"{path}: not an episode file ({_reason(err)})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
         raise EpisodeError(f"{path}: not an episode file (a single array, not an .npz archive)")
-    return _episode_from_arrays(arrays, str(path))
+    try:
+        with data:
+            arrays = {k: data[k] for k in data.files}
+    except Exception as err:  # a damaged member: bad CRC, truncated deflate stream, an object array
+        raise EpisodeError(f"{path}: not an episode file ({_reason(err)})") from None
+    try:
+        return _episode_from_arrays(arrays, str(path))
+    except EpisodeError:
+        raise
+    except Exception as err:  # anything the checks above did not foresee is still a malformed file
+        raise EpisodeError(f"{path}: malformed episode file ({_reason(err)})") from None
+
+
+def _reason(err: BaseException) -> str:
+    """One line saying what went wrong."""
+    text = " ".join(str(err).split())
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
 
 
 def __getattr__(name: str) -> Any:
