@@ -30,6 +30,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
 
 from smac_hard_gym.envs.autoreset import AUTORESET_NAMES
+from smac_hard_gym.envs.subproc.safe_pickle import safe_loads
 from smac_hard_gym.envs.subproc.shared_memory import SharedBlock, write_masks, write_obs
 from smac_hard_gym.lifetime import die_with_parent
 
@@ -120,8 +121,10 @@ def unpack_error(value: tuple[bytes | None, str], index: int, where: str = "Subp
     err: BaseException | None = None
     if blob is not None:
         try:
-            err = cloudpickle.loads(blob)
+            err = safe_loads(blob)  # an exception of a class outside the allow-list travels as text
         except Exception:
+            err = None
+        if not isinstance(err, BaseException):
             err = None
     if err is None:
         err = RuntimeError(text.strip().splitlines()[-1] if text.strip() else "unknown error")
@@ -135,12 +138,21 @@ def unpack_error(value: tuple[bytes | None, str], index: int, where: str = "Subp
 
 
 def limit_threads(threads: int) -> None:
-    """One worker per core is the point: keep numba and BLAS from starting a thread per core in each worker."""
-    for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ[var] = str(threads)
-    if "numba" in sys.modules:  # forked from a parent that already loaded it
-        import numba
+    """One worker per core is the point: keep numba and BLAS from starting a thread per core in each worker.
 
+    Before numba is imported, ``NUMBA_NUM_THREADS`` sizes its pool. Once it is imported (a forkserver that preloaded
+    the main module, a forked parent), the variable must keep the value numba read: every compile re-reads the
+    environment, and a changed pool size after the pool started is an error ("Cannot set NUMBA_NUM_THREADS to a
+    different value once the threads have been launched"), which is how a worker on an empty cache used to fail.
+    ``numba.set_num_threads`` limits the threads used instead.
+    """
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = str(threads)
+    numba = sys.modules.get("numba")
+    if numba is None:
+        os.environ["NUMBA_NUM_THREADS"] = str(threads)
+    else:
+        os.environ["NUMBA_NUM_THREADS"] = str(numba.config.NUMBA_NUM_THREADS)
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(threads)
