@@ -19,6 +19,7 @@ from gymnasium.vector.utils import batch_space
 
 from smac_hard_gym.envs.autoreset import parse_autoreset_mode
 from smac_hard_gym.envs.subproc.batch import compact_seed, concat_infos, concat_obs, obs_row, split_seed
+from smac_hard_gym.envs.subproc.safe_pickle import safe_loads
 from smac_hard_gym.envs.subproc.shared_memory import MASK_KEY, SharedBlock, block_layout, read_obs
 from smac_hard_gym.envs.subproc.worker import unpack_error, worker_main
 from smac_hard_gym.smac.actions import InvalidActionError, ResetNeededError, validate_actions
@@ -618,13 +619,18 @@ def _context(start_method: str) -> Any:
 def _read_message(worker: _Worker, item: Any) -> tuple[str, Any]:
     """The worker's message once ``wait`` returned ``item`` (its pipe or its process sentinel); ``("died", None)``
     when the process ended without one."""
-    if item is worker.conn or worker.conn.poll():
-        try:
-            status, value = worker.conn.recv()
-        except (EOFError, OSError):
-            status, value = "died", None
-    else:
-        status, value = "died", None
+    if not (item is worker.conn or worker.conn.poll()):
+        return "died", None
+    try:
+        data = worker.conn.recv_bytes()
+    except (EOFError, OSError):
+        return "died", None
+    try:
+        status, value = safe_loads(data)  # never pickle.loads: the worker's process may not be ours any more
+        if status not in ("ok", "error"):
+            raise ValueError(f"unknown status {status!r}")
+    except Exception as err:  # noqa: BLE001 - any malformed reply: the worker is treated as failed
+        return "unsafe", f"{type(err).__name__}: {err}"
     return status, value
 
 
@@ -635,6 +641,9 @@ def _outcome(worker: _Worker, status: str, value: Any, what: str) -> tuple[bool,
         return True, value
     if status == "error":  # only at "start": later env errors are raised by _gather
         return False, value[1]
+    if status == "unsafe":
+        worker.process.kill()
+        return False, f"sent a reply to {what} that the parent does not read ({value}); its process was killed"
     worker.process.join(0.1)
     return False, f"died during {what} (exit code {worker.process.exitcode})"
 
