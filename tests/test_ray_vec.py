@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+from fuzz_harness import SEED, VectorApi, fuzz_remote
 from gymnasium.vector import AutoresetMode
 from test_vector_env import assert_same
 
@@ -184,6 +185,17 @@ def test_env_errors_reach_the_parent_and_bad_factories_are_reported():
         make_ray_vec("no_such_map", 1, 1)
     with pytest.raises(ValueError, match="3 actors reserving 1 CPU each need 3 CPUs but the Ray cluster has 2"):
         make_ray_vec("3m", 3, 1)
+
+
+def test_malformed_actions_are_rejected_before_any_actor_steps():
+    rng = np.random.default_rng([SEED, 300])
+    native = VectorApi("3m", opponent="default")
+    env = make_ray_vec("3m", 2, 1, invalid_action="raise", autoreset_mode="SameStep", opponent="default")
+    try:
+        fuzz_remote(env, native, rng, rounds=40)
+    finally:
+        env.close()
+        native.close()
 
 
 def test_make_ray_vec_is_a_lazy_export():
