@@ -143,6 +143,14 @@ def main(argv: list[str] | None = None) -> int:
     remote_rounds = 0 if args.no_remote else int(args.malformed * REMOTE_SHARE / (len(maps) * len(REMOTE_APIS)))
     local_rounds = -(-(args.malformed - remote_rounds * len(maps) * len(REMOTE_APIS)) // (len(maps) * len(LOCAL_APIS)))
     tally = Tally()
+    ray = None
+    if remote_rounds:
+        try:
+            import ray
+
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)  # one local Ray for every map
+        except ImportError:
+            ray = None
     started = time.perf_counter()
     for k, map_name in enumerate(maps):
         rng = np.random.default_rng([SEED, k])
@@ -151,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
             soak_remote(map_name, remote_rounds, rng, tally)
         soak_legal(map_name, -(-args.legal // len(maps)), rng, tally)
         print(f"{map_name:>16}: done at {time.perf_counter() - started:.0f} s", flush=True)
+    if ray is not None:
+        ray.shutdown()
     totals = collections.Counter()
     for counts in tally.counts.values():
         totals.update(counts)
