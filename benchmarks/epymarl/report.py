@@ -1,0 +1,210 @@
+"""Report of the EPyMARL reference runs made by run_reference.py: win-rate table beside the SMAC-HARD paper's, curves.
+
+Reads every job's sacred ``info.json`` (``sacred/<start>/<id>/info.json``: ``test_battle_won_mean`` over
+``test_battle_won_mean_T`` = t_env), joins the segments of a resumed job (a later start supersedes the points of
+earlier ones from its first t_env on), and writes ``<out>/report.md`` and ``<out>/curves/<map>.png`` (each written
+to a temporary file, then renamed into place).
+
+Final win rate = the mean of the job's last ``--last`` (default 3) test evaluations; with EPyMARL's sc2.yaml
+(test_interval 50000, test_nepisode 100) these are the evaluations at about t_env 1.95M, 2.0M and 2.05M, 300 greedy
+episodes in all. A job without done.json is shown as in progress with the same mean over its latest evaluations.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+from pathlib import Path
+
+# SMAC-HARD paper (arXiv 2412.17707), appendix "Final Performance at 2M time step", table captioned
+# "Final performance at 2M time step with default opponent policy" (SMAC's own opponent): (QMIX, MAPPO) columns.
+# QMIX from pymarl2, MAPPO from Yu et al.'s on-policy code; 5 seeds, win rate over 32 test episodes.
+PAPER_2M_DEFAULT_OPPONENT = {
+    "3m": (0.9798, 0.9897),
+    "8m": (0.9797, 0.9538),
+    "5m_vs_6m": (0.544, 0.5103),
+    "8m_vs_9m": (0.9137, 0.7821),
+    "10m_vs_11m": (0.9515, 0.6859),
+    "25m": (0.975, 0.9692),
+    "27m_vs_30m": (0.4202, 0.6051),
+    "2s3z": (0.9732, 0.941),
+    "3s5z": (0.9485, 0.4512),
+    "3s5z_vs_3s6z": (0.0256, 0.1128),
+    "1c3s5z": (0.9893, 0.982),
+    "3s_vs_3z": (0.994, 0.982),
+    "3s_vs_4z": (0.9857, 0.9744),
+    "3s_vs_5z": (0.7771, 0.9744),
+    "bane_vs_bane": (0.783, 0.9974),
+    "so_many_baneling": (0.9672, 0.9821),
+    "2s_vs_1sc": (0.9917, 1.0),
+    "2m_vs_1z": (0.9926, 1.0),
+    "2c_vs_64zg": (0.9226, 0.9359),
+    "MMM": (0.9824, 0.9256),
+    "MMM2": (0.7875, 0.4487),
+    "6h_vs_8z": (0.1438, 0.0154),
+    "corridor": (0.0, 0.3077),
+}
+PAPER_COL = {"qmix": 0, "mappo": 1}
+KEY = "test_battle_won_mean"
+
+
+def curve(job_dir: Path, key: str = KEY) -> list[tuple[int, float]]:
+    """(t_env, value) of one job over all its sacred runs (restarts), later runs superseding earlier ones."""
+    runs = sorted((d for d in (job_dir / "sacred").glob("*/*") if d.name.isdigit() and d.parent.name.isdigit()),
+                  key=lambda d: (int(d.parent.name), int(d.name)))
+    points: list[tuple[int, float]] = []
+    for run in runs:
+        try:
+            info = json.loads((run / "info.json").read_text())
+        except (OSError, ValueError):
+            continue
+        ts, vs = info.get(f"{key}_T", []), info.get(key, [])
+        seg = [(int(t), float(v)) for t, v in zip(ts, vs, strict=False)]
+        if not seg:
+            continue
+        points = [p for p in points if p[0] < seg[0][0]] + seg
+    return points
+
+
+def recent_speed(job_dir: Path, window: int = 100_000) -> float | None:
+    """env steps/s of the latest start over its last `window` steps, from sacred's metrics.json timestamps of the
+    runner's stats (logged every runner_log_interval = 10000 steps)."""
+    import datetime as dt
+
+    runs = sorted((d for d in (job_dir / "sacred").glob("*/*") if d.name.isdigit() and d.parent.name.isdigit()),
+                  key=lambda d: (int(d.parent.name), int(d.name)))
+    if not runs:
+        return None
+    try:
+        m = json.loads((runs[-1] / "metrics.json").read_text())["ep_length_mean"]
+    except (OSError, ValueError, KeyError):
+        return None
+    steps, stamps = m["steps"], [dt.datetime.fromisoformat(t) for t in m["timestamps"]]
+    if len(steps) < 2:
+        return None
+    i = next(k for k in range(len(steps)) if steps[-1] - steps[k] <= window or k == len(steps) - 2)
+    secs = (stamps[-1] - stamps[i]).total_seconds()
+    return (steps[-1] - steps[i]) / secs if secs > 0 else None
+
+
+def jobs(out: Path) -> list[tuple[str, str, str, Path]]:
+    """(algo, map, seed-folder, dir) of every job folder under out."""
+    found = []
+    for d in sorted(out.glob("*/*/seed*")):
+        if (d / "sacred").is_dir() or (d / "logs").is_dir():
+            found.append((d.parent.parent.name, d.parent.name, d.name, d))
+    return found
+
+
+def fmt(x: float | None) -> str:
+    return "–" if x is None else f"{x:.3f}"
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+
+
+def plot(path: Path, map_name: str, series: dict[str, list[tuple[int, float]]], t_max: int) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for label, pts in sorted(series.items()):
+        if pts:
+            ax.plot([t / 1e6 for t, _ in pts], [v for _, v in pts], label=label, lw=1.2)
+    paper = PAPER_2M_DEFAULT_OPPONENT.get(map_name)
+    if paper:
+        for algo, col, marker in (("qmix", 0, "o"), ("mappo", 1, "s")):
+            ax.plot([2.0], [paper[col]], marker=marker, ls="none", color="k", mfc="none",
+                    label=f"paper {algo.upper()} @2M")
+    ax.set(xlim=(0, t_max / 1e6), ylim=(-0.02, 1.02), xlabel="env steps (M)", ylabel=KEY,
+           title=f"{map_name}: EPyMARL vs SMAC's opponent")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".png")
+    os.close(fd)
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", type=Path, required=True, help="the run_reference.py --out folder")
+    p.add_argument("--last", type=int, default=3, help="final win rate = mean of the last N test evaluations")
+    p.add_argument("--t-max", type=int, default=2_050_000)
+    p.add_argument("--no-plots", action="store_true")
+    args = p.parse_args(argv)
+    out = args.out.expanduser().resolve()
+
+    rows: dict[str, dict[str, list[tuple[str, float | None, int, bool]]]] = {}
+    per_map: dict[str, dict[str, list[tuple[int, float]]]] = {}
+    for algo, map_name, seed, d in jobs(out):
+        pts = curve(d)
+        last = [v for _, v in pts[-args.last:]]
+        final = sum(last) / len(last) if last else None
+        t_reached = pts[-1][0] if pts else 0
+        rows.setdefault(map_name, {}).setdefault(algo, []).append((seed, final, t_reached, (d / "done.json").is_file()))
+        per_map.setdefault(map_name, {})[f"{algo} {seed}"] = pts
+
+    lines = [
+        "# EPyMARL reference runs vs SMAC's opponent (smac-hard-gym engine)",
+        "",
+        f"Ours: mean `{KEY}` of the last {args.last} test evaluations of each run (EPyMARL sc2.yaml: 100 greedy "
+        "episodes every 50k steps), t_max 2.05M; `*` = run still in progress (value so far, t_env reached shown).",
+        "Paper: SMAC-HARD (arXiv 2412.17707), appendix table *Final performance at 2M time step with default "
+        "opponent policy* (QMIX = pymarl2, MAPPO = Yu et al.; 5 seeds, 32 test episodes).",
+        "",
+        "| map | QMIX (ours) | QMIX (paper) | MAPPO (ours) | MAPPO (paper) |",
+        "|---|---|---|---|---|",
+    ]
+
+    def cell(entries: list[tuple[str, float | None, int, bool]] | None) -> str:
+        if not entries:
+            return "not run"
+        parts = []
+        for seed, final, t, done in entries:
+            parts.append(f"{fmt(final)}" + ("" if done else f"* ({t / 1e6:.2f}M)") + f" [{seed}]")
+        return "<br>".join(parts)
+
+    order = list(PAPER_2M_DEFAULT_OPPONENT)
+    for map_name in sorted(rows, key=lambda m: (order.index(m) if m in order else len(order), m)):
+        paper = PAPER_2M_DEFAULT_OPPONENT.get(map_name, (None, None))
+        lines.append(f"| {map_name} | {cell(rows[map_name].get('qmix'))} | {fmt(paper[0])} | "
+                     f"{cell(rows[map_name].get('mappo'))} | {fmt(paper[1])} |")
+    if not rows:
+        lines.append("| (no runs found) | | | | |")
+    lines.append("")
+    if not args.no_plots and per_map:
+        (out / "curves").mkdir(exist_ok=True)
+        for map_name, series in per_map.items():
+            plot(out / "curves" / f"{map_name}.png", map_name, series, args.t_max)
+        lines.append("Curves: " + ", ".join(f"[{m}](curves/{m}.png)" for m in sorted(per_map)))
+        lines.append("")
+    lines += ["## Progress", "", "| run | t_env reached | steps/s (last 100k) | hours left at that rate |",
+              "|---|---|---|---|"]
+    for algo, map_name, seed, d in jobs(out):
+        pts = curve(d, "ep_length_mean") or curve(d)
+        t = pts[-1][0] if pts else 0
+        done = (d / "done.json").is_file()
+        v = None if done else recent_speed(d)
+        left = "done" if done else ("–" if not v else f"{max(0, args.t_max - t) / v / 3600:.1f}")
+        lines.append(f"| {algo}/{map_name}/{seed} | {t} | {'–' if v is None else f'{v:.0f}'} | {left} |")
+    lines.append("")
+    atomic_write_text(out / "report.md", "\n".join(lines))
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
