@@ -47,7 +47,7 @@ from smac_hard_gym.envs.subproc import make_subproc_env
 
 if __name__ == "__main__":
     numba.set_num_threads(1)  # the parent's pool is running before any worker starts
-    with make_subproc_env("3m", 2, 1, start_method=sys.argv[1]) as env:
+    with make_subproc_env("3m", 1, 2, start_method=sys.argv[1]) as env:  # one worker compiles: enough to fail
         env.reset(seed=0)
         for _ in range(3):
             env.step(np.ones((2, 3), dtype=np.int64))
