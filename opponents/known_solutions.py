@@ -390,10 +390,3 @@ def claims_for_map(map_name: str | None = None) -> tuple[Claim, ...]:
         raise ValueError(f"no known solutions on map {map_name!r}; maps with some: "
                          f"{sorted({c.map_name for c in CLAIMS})}")
     return claims
-
-
-def __getattr__(name: str):
-    if name == "check_claim":  # it runs duels, which play on the core above this package
-        raise ImportError("check_claim moved to smac_hard_gym.envs.solutions: "
-                          "from smac_hard_gym.envs.solutions import check_claim")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

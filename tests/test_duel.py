@@ -92,15 +92,6 @@ def test_an_idle_side_gives_no_orders():
     assert run_duel("3m", red="idle", blue="base", episodes=2, seed=0) == result
 
 
-def test_the_old_spellings_name_the_new_ones():
-    with pytest.raises(ImportError, match="smac_hard_gym.envs.duel"):
-        import smac_hard_gym.opponents.duel  # noqa: F401
-    with pytest.raises(ImportError, match="smac_hard_gym.envs.duel import record_engine_episode"):
-        from smac_hard_gym.render import record_engine_episode as _  # noqa: F401
-    with pytest.raises(ImportError, match="smac_hard_gym.envs.solutions import check_claim"):
-        from smac_hard_gym.opponents.known_solutions import check_claim  # noqa: F401
-
-
 class _KillOwnFighters(Script):
     """Red test script: on the first step it removes its own units except the medivac (by writing the state)."""
 

@@ -30,10 +30,3 @@ __all__ = [
     "EpisodeRecorder", "Episode", "EpisodeError", "load_episode", "write_video",
     "VIDEO_FORMATS",
 ]
-
-
-def __getattr__(name: str):
-    if name == "record_engine_episode":  # moved above the core: render sits below the envs and imports none of them
-        raise ImportError("record_engine_episode moved to smac_hard_gym.envs.duel (it plays on the two-player core): "
-                          "from smac_hard_gym.envs.duel import record_engine_episode")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -447,10 +447,3 @@ def _reason(err: BaseException) -> str:
     """One line saying what went wrong."""
     text = " ".join(str(err).split())
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
-
-
-def __getattr__(name: str) -> Any:
-    if name == "record_engine_episode":
-        raise ImportError("record_engine_episode moved to smac_hard_gym.envs.duel (it plays on the two-player core): "
-                          "from smac_hard_gym.envs.duel import record_engine_episode")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
