@@ -22,6 +22,7 @@ COMMANDS: dict[str, str] = {
     "train": "smac_hard_gym.commands.train",
     "eval": "smac_hard_gym.commands.eval",
     "baselines": "smac_hard_gym.commands.baselines",
+    "scriptlab": "smac_hard_gym.commands.scriptlab",
 }
 
 

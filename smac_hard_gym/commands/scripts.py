@@ -1,4 +1,5 @@
-"""``smac-hard-gym scripts [--map M]``: list the built-in opponent scripts with one-line descriptions."""
+"""``smac-hard-gym scripts [--map M | --path DIR]``: list the built-in opponent scripts with one-line descriptions,
+or the script files in a folder (a script lab's output, say) without running them."""
 
 from __future__ import annotations
 
@@ -11,6 +12,9 @@ HELP = "list the built-in opponent scripts (all, or those that play one map) and
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", default=None, help="only the scripts that play this map, with its pools")
+    parser.add_argument("--path", default=None, metavar="DIR",
+                        help="list the scripts in the .py files of DIR (and its round_* folders) instead: name, class, "
+                             "description and the reference opponent= takes (files are parsed, never run)")
     parser.add_argument("--json", action="store_true", help="print machine-readable JSON")
 
 
@@ -30,9 +34,33 @@ def _catalogue(map_name: str | None) -> dict:
             "default": {m: list(pool_for_map(m, "default")) for m in list_maps()}}
 
 
+def _run_path(args: argparse.Namespace) -> int:
+    import json
+
+    from smac_hard_gym.scriptlab.report import list_scripts
+
+    scripts = list_scripts(args.path)
+    if args.json:
+        print(json.dumps(scripts, indent=1))
+        return 0
+    if not scripts:
+        print(f"no script classes in {args.path}")
+        return 0
+    width = max(len(s["name"]) for s in scripts) + 2
+    for info in scripts:
+        print(f"  {info['name']:<{width}}{info['description']}")
+        print(f"  {'':<{width}}{info['reference'] or info['file']}")
+    print("(use a reference as opponent=..., --red or --blue; file scripts run in the process sandbox)")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     import json
 
+    if getattr(args, "path", None) is not None:
+        if args.map is not None:
+            raise ValueError("give --map or --path, not both")
+        return _run_path(args)
     cat = _catalogue(args.map)
     if args.json:
         print(json.dumps(cat, indent=1))
