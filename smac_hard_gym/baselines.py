@@ -36,6 +36,9 @@ from typing import Any
 
 import numpy as np
 
+from smac_hard_gym.files import atomic_path, atomic_write, write_json, write_text
+from smac_hard_gym.training import TEST_SEED_BASE
+
 __all__ = ["SweepConfig", "Run", "PAPER", "plan", "run_state", "run_sweep", "aggregate", "write_report",
            "value_estimate", "EXPERIMENTS", "findings", "spearman"]
 
@@ -175,10 +178,11 @@ def run_state(path: Path) -> str:
     summary = path / "summary.json"
     if summary.is_file():
         try:
-            if not json.loads(summary.read_text()).get("interrupted", False):
-                return "done"
-        except json.JSONDecodeError:
-            pass
+            data = json.loads(summary.read_bytes().decode("utf-8"))
+        except (OSError, ValueError, RecursionError):  # unreadable or malformed: the run is redone
+            return "partial"
+        if isinstance(data, dict) and data.get("interrupted", False) is False:
+            return "done"
         return "partial"
     return "partial" if path.exists() else "todo"
 
@@ -193,14 +197,14 @@ def train_command(run: Run, config: SweepConfig) -> list[str]:
 def blackbox_command(run: Run, config: SweepConfig) -> list[str]:
     path = run.path(config.out)
     return [sys.executable, "-m", "smac_hard_gym.cli", "eval", "--model", str(path / "model.zip"), "--opponent",
-            "blackbox", "--episodes", str(config.eval_episodes), "--seed", str(run.seed),
-            "--json", str(path / "blackbox.json")]
+            "blackbox", "--episodes", str(config.eval_episodes), "--json", str(path / "blackbox.json")]
+    # no --seed: eval's default test battles, the ones train evaluates on (training.TEST_SEED_BASE)
 
 
 def value_command(run: Run, config: SweepConfig) -> list[str]:
     path = run.path(config.out)
     code = (f"from smac_hard_gym.baselines import value_main; value_main({str(path / 'model.zip')!r}, "
-            f"{run.opponent!r}, {config.eval_episodes}, {run.seed}, {str(path / 'value.json')!r})")
+            f"{run.opponent!r}, {config.eval_episodes}, {TEST_SEED_BASE}, {str(path / 'value.json')!r})")
     return [sys.executable, "-c", code]
 
 
@@ -290,7 +294,7 @@ def run_sweep(config: SweepConfig, *, progress: bool = True, log: Callable[[str]
                 bar.close()
     results = aggregate(out, config)
     results["failed"] = sorted(set(failed))
-    (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+    write_json(out / "results.json", results)
     for label in results["failed"]:
         log(f"failed: {label} (see {by_label[label].path(out)}/*.log)")
     return results
@@ -325,11 +329,10 @@ def value_main(model_path: str, opponent: str, episodes: int, seed: int, out: st
     """Runs in its own process (:func:`value_command`): :func:`value_estimate` of a trained model on ``episodes``
     test battles against ``opponent``, written as JSON to ``out``."""
     import torch
-    from sb3_contrib import MaskablePPO
 
     from smac_hard_gym.envs.vector import NativeVectorEnv
     from smac_hard_gym.opponents import opponent_from_text
-    from smac_hard_gym.training import load_run_config
+    from smac_hard_gym.training import load_model, load_run_config
 
     torch.set_num_threads(1)
     config = load_run_config(model_path)
@@ -337,15 +340,14 @@ def value_main(model_path: str, opponent: str, episodes: int, seed: int, out: st
         raise FileNotFoundError(f"no config.json next to {model_path}")
     kwargs = config.env_kwargs()
     map_name = kwargs.pop("map_name")
-    model = MaskablePPO.load(model_path, device="cpu")
+    model = load_model(model_path)
     venv = NativeVectorEnv(map_name, episodes, autoreset_mode="SameStep", opponent=opponent_from_text(opponent),
                            **kwargs)
     try:
-        value = value_estimate(model, venv, seed=seed + 1_000_003)  # the seeds of train's test episodes
+        value = value_estimate(model, venv, seed=seed)  # TEST_SEED_BASE from value_command: train's test battles
     finally:
         venv.close()
-    Path(out).write_text(json.dumps({"map": map_name, "opponent": opponent, "episodes": episodes,
-                                     "mean_value": value}, indent=2) + "\n")
+    write_json(out, {"map": map_name, "opponent": opponent, "episodes": episodes, "mean_value": value})
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -359,9 +361,110 @@ def spread(values: Sequence[float]) -> dict[str, float]:
             "min": float(array.min()), "max": float(array.max())}
 
 
+class MalformedFile(ValueError):
+    """A file of a run or of the sweep cannot be read (the message names the file and what is wrong)."""
+
+
+def _read_json(path: Path, what: str) -> Any:
+    from smac_hard_gym.training import read_json
+
+    return read_json(path, what)
+
+
 def _read_curve(path: Path) -> dict[int, float]:
-    with path.open() as handle:
-        return {int(row["timesteps"]): float(row["win_rate"]) for row in csv.DictReader(handle)}
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            curve = {}
+            for row in csv.DictReader(handle):
+                step, rate = int(row["timesteps"]), float(row["win_rate"])
+                if step < 0 or not 0.0 <= rate <= 1.0:  # also rejects nan
+                    raise ValueError(f"timesteps {step}, win rate {rate} out of range")
+                curve[step] = rate
+            return curve
+    except (OSError, ValueError, KeyError, TypeError, csv.Error) as err:
+        raise MalformedFile(f"{path}: malformed learning curve ({type(err).__name__}: {err})") from None
+
+
+def _number(data: dict[str, Any], key: str, path: Path, *, rate: bool = False, optional: bool = False) -> Any:
+    """``data[key]`` checked to be a finite number (in 0..1 for a ``rate``; None allowed when ``optional``)."""
+    if key not in data:
+        if optional:
+            return None
+        raise MalformedFile(f"{path}: malformed file (no {key!r} entry)")
+    value = data[key]
+    if value is None and optional:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
+            or (rate and not 0.0 <= value <= 1.0):
+        raise MalformedFile(f"{path}: malformed file ({key} is {value!r}, expected a "
+                            f"{'win rate in 0..1' if rate else 'finite number'})")
+    return value
+
+
+def _text(data: dict[str, Any], key: str, path: Path) -> str:
+    if key not in data:
+        raise MalformedFile(f"{path}: malformed file (no {key!r} entry)")
+    value = data[key]
+    if not isinstance(value, str):
+        raise MalformedFile(f"{path}: malformed file ({key} is {value!r}, expected a string)")
+    return value
+
+
+def _object(data: Any, path: Path, what: str) -> dict[str, Any]:
+    if not isinstance(data, dict):
+        raise MalformedFile(f"{path}: malformed {what} (a JSON object expected, got {type(data).__name__})")
+    return data
+
+
+def _rates(data: Any, path: Path, key: str) -> dict[str, float]:
+    """A mapping of names to win rates (``final_per_opponent``), checked."""
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise MalformedFile(f"{path}: malformed file ({key} is {data!r}, expected an object of win rates)")
+    return {str(name): _number(data, name, path, rate=True) for name in data}
+
+
+def _read_run(path: Path, out: Path) -> tuple[dict[str, Any], dict[int, float] | None, dict[str, Any] | None,
+                                              float | None]:
+    """One finished run's row, curve, black-box evaluation and value estimate; malformed files raise
+    :class:`MalformedFile` naming them."""
+    summary_path = path / "summary.json"
+    summary = _object(_read_json(summary_path, "run summary"), summary_path, "run summary")
+    train_config = {}
+    if (path / "config.json").is_file():
+        train_config = _object(_read_json(path / "config.json", "run config"), path / "config.json", "run config")
+    seed = train_config.get("seed")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+        raise MalformedFile(f"{path / 'config.json'}: malformed file (seed is {seed!r}, expected an int)")
+    row = {"map": _text(summary, "map", summary_path), "opponent": _text(summary, "opponent", summary_path),
+           "seed": seed, "timesteps": _number(summary, "timesteps", summary_path),
+           "final_win_rate": _number(summary, "final_win_rate", summary_path, rate=True),
+           "best_win_rate": _number(summary, "best_win_rate", summary_path, rate=True),
+           "train_wall_s": _number(summary, "train_wall_s", summary_path, optional=True),
+           "dir": str(path.relative_to(out))}
+    row["final_per_opponent"] = _rates(summary.get("final_per_opponent"), summary_path, "final_per_opponent")
+    curve = _read_curve(path / "curve.csv") if (path / "curve.csv").is_file() else None
+    evaluation = None
+    if (path / "blackbox.json").is_file():
+        bb_path = path / "blackbox.json"
+        evaluation = _object(_read_json(bb_path, "black-box evaluation"), bb_path, "black-box evaluation")
+        scripts = evaluation.get("scripts")
+        mixture = evaluation.get("mixture")
+        weights = evaluation.get("weights")
+        if not isinstance(scripts, dict) or not isinstance(mixture, dict) or not isinstance(weights, dict):
+            raise MalformedFile(f"{bb_path}: malformed black-box evaluation (needs 'scripts', 'mixture' and "
+                                "'weights' objects)")
+        evaluation = {"scripts": {str(name): _number(_object(r, bb_path, f"row of {name!r}"), "win_rate", bb_path,
+                                                     rate=True) for name, r in scripts.items()},
+                      "mixture": _number(mixture, "win_rate", bb_path, rate=True),
+                      "weights": {str(name): _number(weights, name, bb_path) for name in weights}}
+    value = None
+    if (path / "value.json").is_file():
+        value_path = path / "value.json"
+        value = _number(_object(_read_json(value_path, "value estimate"), value_path, "value estimate"),
+                        "mean_value", value_path)
+    return row, curve, evaluation, value
 
 
 def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, Any]:
@@ -378,29 +481,24 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     for path in sorted((out / "runs").glob("*")):
         if run_state(path) != "done":
             continue
-        summary = json.loads((path / "summary.json").read_text())
-        train_config = json.loads((path / "config.json").read_text()) if (path / "config.json").is_file() else {}
-        row = {"map": summary["map"], "opponent": summary["opponent"], "seed": train_config.get("seed"),
-               "timesteps": summary["timesteps"], "final_win_rate": summary["final_win_rate"],
-               "best_win_rate": summary["best_win_rate"], "train_wall_s": summary.get("train_wall_s"),
-               "dir": str(path.relative_to(out))}
-        key = (summary["map"], summary["opponent"])
-        if summary["opponent"] == "default":
-            for script, rate in (summary.get("final_per_opponent") or {}).items():
-                pool.setdefault((summary["map"], script), []).append(rate)
-        if (path / "curve.csv").is_file():
-            curves.setdefault(key, []).append(_read_curve(path / "curve.csv"))
-        if (path / "blackbox.json").is_file():
-            evaluation = json.loads((path / "blackbox.json").read_text())
-            row["blackbox"] = {name: r["win_rate"] for name, r in evaluation["scripts"].items()}
-            row["blackbox"]["mixture"] = evaluation["mixture"]["win_rate"]
+        row, curve, evaluation, value = _read_run(path, out)
+        per_opponent = row.pop("final_per_opponent")
+        key = (row["map"], row["opponent"])
+        if row["opponent"] == "default":
+            for script, rate in per_opponent.items():
+                pool.setdefault((row["map"], script), []).append(rate)
+        if curve is not None:
+            curves.setdefault(key, []).append(curve)
+        if evaluation is not None:
+            row["blackbox"] = dict(evaluation["scripts"])
+            row["blackbox"]["mixture"] = evaluation["mixture"]
             for name, rate in row["blackbox"].items():
-                blackbox.setdefault((summary["map"], name), []).append(rate)
+                blackbox.setdefault((row["map"], name), []).append(rate)
             for name, weight in evaluation["weights"].items():
-                weights[(summary["map"], name)] = weight
-        if (path / "value.json").is_file():
-            row["mean_value"] = json.loads((path / "value.json").read_text())["mean_value"]
-            values.setdefault(key, []).append(row["mean_value"])
+                weights[(row["map"], name)] = weight
+        if value is not None:
+            row["mean_value"] = value
+            values.setdefault(key, []).append(value)
         runs.append(row)
     table = []
     for key in sorted({(r["map"], r["opponent"]) for r in runs}, key=_order):
@@ -416,7 +514,11 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     pool_table = [{"map": m, "script": s, **spread(v)} for (m, s), v in sorted(pool.items(), key=script_order)]
     saved = {}
     if config is None and (out / "results.json").is_file():
-        saved = json.loads((out / "results.json").read_text()).get("config", {})
+        saved = _object(_read_json(out / "results.json", "sweep results"), out / "results.json",
+                        "sweep results").get("config", {})
+        if not isinstance(saved, dict):
+            raise MalformedFile(f"{out / 'results.json'}: malformed sweep results (config is {saved!r}, expected "
+                                "an object)")
     results = {"config": asdict(config) if config is not None else saved, "runs": runs, "table": table,
                "blackbox": bb_table, "values": value_table, "pool": pool_table}
     results["findings"] = findings(results)
@@ -427,7 +529,7 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     if value_table:
         _write_csv(out / "values.csv", value_table, ("map", "opponent", "seeds", "mean", "std", "min", "max"))
     _plot_curves(out / "curves", curves)
-    (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+    write_json(out / "results.json", results)
     return results
 
 
@@ -439,7 +541,7 @@ def _order(key: tuple[str, str]) -> tuple[int, str, int, str]:
 
 
 def _write_csv(path: Path, rows: list[dict[str, Any]], columns: Sequence[str]) -> None:
-    with path.open("w", newline="") as handle:
+    with atomic_write(path, "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(columns)
         for row in rows:
@@ -478,8 +580,11 @@ def _plot_curves(folder: Path, curves: dict[tuple[str, str], list[dict[int, floa
         axes.set_title(f"MaskablePPO on {map_name}")
         axes.legend(loc="best", fontsize="small")
         fig.tight_layout()
-        fig.savefig(folder / f"{map_name}.png")
-        plt.close(fig)
+        try:
+            with atomic_path(folder / f"{map_name}.png") as tmp:
+                fig.savefig(tmp, format="png")
+        finally:
+            plt.close(fig)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -645,12 +750,29 @@ def report_markdown(results: dict[str, Any], maps: Sequence[str] | None = None) 
 
 
 def write_report(out: str | Path, path: str | Path) -> Path:
-    """Aggregate the runs under ``out`` (no training) and write :func:`report_markdown` to ``path``."""
+    """Aggregate the runs under ``out`` (no training) and write :func:`report_markdown` to ``path``. A published
+    sweep without its run folders (``out/results.json`` alone, as under ``docs/baselines/``) is rendered from its
+    ``results.json``."""
     out = Path(out)
-    if not (out / "runs").is_dir():
-        raise FileNotFoundError(f"no runs under {out}: run `smac-hard-gym baselines --out {out}` first")
-    results = aggregate(out)
+    if (out / "runs").is_dir():
+        results = aggregate(out)
+    elif (out / "results.json").is_file():
+        results = _object(_read_json(out / "results.json", "sweep results"), out / "results.json", "sweep results")
+        for key in ("config", "runs", "table", "blackbox"):
+            expected = dict if key == "config" else list
+            if not isinstance(results.get(key, expected()), expected):
+                raise MalformedFile(f"{out / 'results.json'}: malformed sweep results ({key} is {results[key]!r}, "
+                                    f"expected {'an object' if expected is dict else 'a list'})")
+        results.setdefault("config", {})
+    else:
+        raise FileNotFoundError(f"no runs under {out} and no results.json: run `smac-hard-gym baselines --out {out}` "
+                                "first")
     maps = results["config"].get("maps") or None
-    Path(path).write_text(report_markdown(results, maps))
-    return Path(path)
+    if maps is not None and (not isinstance(maps, list) or not all(isinstance(m, str) for m in maps)):
+        raise MalformedFile(f"{out / 'results.json'}: malformed sweep results (config maps is {maps!r}, expected a "
+                            "list of map names)")
+    if maps is not None:  # the last session's maps, and every map with results (a sweep run over several sessions)
+        found = set(maps) | {r.get("map") for r in results.get("table", []) if isinstance(r, dict)}
+        maps = [m for m in _MAP_ORDER if m in found] + sorted(m for m in found - set(_MAP_ORDER) if isinstance(m, str))
+    return write_text(path, report_markdown(results, maps))
 

@@ -10,6 +10,13 @@ the functions, so ``import smac_hard_gym.training`` is cheap.
   and ``summary.json``. Time spent in ``env.step`` and ``action_masks`` is measured, so the env's share of the
   wall time is part of every report.
 - :func:`evaluate`: win rate of a model over exactly ``episodes`` episodes, per opponent script.
+
+Test protocol (shared by ``train`` and ``eval``): a test evaluation steps ``min(eval_envs, episodes)`` battles seeded
+``TEST_SEED_BASE + b`` (battle b; later episodes of a battle continue its generator), whatever the run's seed, so
+``train``'s evaluations and ``smac-hard-gym eval`` with its defaults play the same test battles. Training battles
+are seeded ``seed + b`` for b < ``num_envs`` (stable-baselines3 seeds the vector env from the run's seed), and a
+run's seed is checked to keep them below ``TEST_SEED_BASE``: test and training battles never share a seed. Every
+win rate comes with its number of episodes, its standard error and a 95% Wilson interval (:func:`win_rate_spread`).
 - :func:`evaluate_scripts`: one evaluation per script of a pool, and the pool's mixture (the paper's black-box
   evaluation when the pool is ``"blackbox"``).
 """
@@ -28,12 +35,47 @@ from typing import Any
 
 import numpy as np
 
+from smac_hard_gym.files import atomic_path, atomic_write, write_json
+
 __all__ = ["TrainConfig", "EvalResult", "train", "evaluate", "evaluate_scripts", "resolve_opponents",
-           "load_run_config", "CURVE_COLUMNS"]
+           "load_run_config", "load_model", "read_json", "CURVE_COLUMNS", "TEST_SEED_BASE", "eval_seeds",
+           "training_seeds", "win_rate_spread"]
 
 CURVE_COLUMNS = ("timesteps", "win_rate", "mean_return", "mean_length", "episodes", "train_win_rate",
                  "train_episodes", "wall_s", "env_s", "env_fraction")
 MIXTURE_ROW = "mixture"
+TEST_SEED_BASE = 1_000_000_000  # test battle b is seeded TEST_SEED_BASE + b; training battles stay below it
+
+
+def eval_seeds(battles: int, base: int = TEST_SEED_BASE) -> list[int]:
+    """The seeds of a test evaluation's ``battles`` battles (``min(eval_envs, episodes)`` of them)."""
+    return [base + b for b in range(battles)]
+
+
+def training_seeds(seed: int, num_envs: int) -> list[int]:
+    """The seeds of a run's ``num_envs`` training battles: stable-baselines3 seeds the vector env from the run's seed,
+    battle b with ``seed + b`` (``VecEnv.seed``)."""
+    return [seed + b for b in range(num_envs)]
+
+
+def win_rate_spread(wins: int, episodes: int, z: float = 1.959964) -> dict[str, Any]:
+    """The spread of a win rate over ``episodes`` episodes: ``stderr`` (binomial standard error, sqrt(p(1-p)/n)) and
+    ``ci95`` (the 95% Wilson score interval, sensible at 0 and 1 wins too)."""
+    if episodes < 1:
+        return {"episodes": int(episodes), "stderr": None, "ci95": None}
+    p = wins / episodes
+    denom = 1 + z * z / episodes
+    centre = (p + z * z / (2 * episodes)) / denom
+    half = z * math.sqrt(p * (1 - p) / episodes + z * z / (4 * episodes * episodes)) / denom
+    return {"episodes": int(episodes), "stderr": math.sqrt(p * (1 - p) / episodes),
+            "ci95": [max(0.0, centre - half), min(1.0, centre + half)]}
+
+
+def format_spread(wins: int, episodes: int) -> str:
+    """``"30/32 won, stderr 0.043, 95% CI [0.80, 0.98]"``."""
+    spread = win_rate_spread(wins, episodes)
+    low, high = spread["ci95"]
+    return f"{wins}/{episodes} won, stderr {spread['stderr']:.3f}, 95% Wilson interval [{low:.3f}, {high:.3f}]"
 
 
 @dataclass
@@ -76,6 +118,10 @@ class TrainConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"{name} must be a positive int, got {value!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0 \
+                or self.seed + self.num_envs > TEST_SEED_BASE:
+            raise ValueError(f"seed must be an int in [0, {TEST_SEED_BASE - self.num_envs}] (training battles are "
+                             f"seeded seed + b, below the test seeds from {TEST_SEED_BASE}), got {self.seed!r}")
         if self.eval_every < 0:
             raise ValueError(f"eval_every must be >= 0 (0: a tenth of the run), got {self.eval_every!r}")
         if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
@@ -143,6 +189,11 @@ class EvalResult:
     @property
     def win_rate(self) -> float:
         return self.wins / self.episodes if self.episodes else 0.0
+
+    @property
+    def spread(self) -> dict[str, Any]:
+        """Episodes, standard error and 95% Wilson interval of the win rate (:func:`win_rate_spread`)."""
+        return win_rate_spread(self.wins, self.episodes)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -220,22 +271,31 @@ def _evaluate_against(model: Any, map_name: str, opponent: Any, episodes: int, n
 
 
 def evaluate_scripts(model: Any, map_name: str, opponent: str, episodes: int, *, num_envs: int = 16,
-                     seed: int = 0, env_kwargs: dict[str, Any] | None = None,
+                     seed: int = TEST_SEED_BASE, env_kwargs: dict[str, Any] | None = None,
                      log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Evaluate ``model`` for ``episodes`` episodes against each script of ``opponent`` (see
-    :func:`resolve_opponents`); the mixture's win rate is the weighted mean of the scripts' (its expectation)."""
+    :func:`resolve_opponents`); the mixture's win rate is the weighted mean of the scripts' (its expectation), its
+    standard error ``sqrt(sum(w_i^2 se_i^2))`` and its 95% interval the weighted sum of the scripts' Wilson bounds.
+    Each script plays the test battles seeded ``seed + b`` (by default the test seeds that ``train`` evaluates on,
+    :data:`TEST_SEED_BASE`)."""
     names, probs = resolve_opponents(map_name, opponent)
-    rows: dict[str, dict[str, float]] = {}
+    rows: dict[str, dict[str, Any]] = {}
     for name in names:
         result = _evaluate_against(model, map_name, name, episodes, num_envs, seed, env_kwargs)
+        spread = result.spread
         rows[name] = {"episodes": result.episodes, "wins": result.wins, "win_rate": result.win_rate,
+                      "stderr": spread["stderr"], "ci95": spread["ci95"],
                       "mean_return": result.mean_return, "mean_length": result.mean_length}
         if log is not None:
-            log(f"  {name:<20} win rate {result.win_rate:6.3f}  ({result.wins}/{result.episodes})")
+            log(f"  {name:<20} win rate {result.win_rate:6.3f}  ({format_spread(result.wins, result.episodes)})")
     mixture = float(sum(p * rows[n]["win_rate"] for n, p in zip(names, probs, strict=True)))
+    stderr = math.sqrt(sum((p * rows[n]["stderr"]) ** 2 for n, p in zip(names, probs, strict=True)))
+    # The weighted sum of the scripts' Wilson bounds: conservative, and never a zero-width interval at 0 or 1.
+    ci95 = [float(sum(p * rows[n]["ci95"][k] for n, p in zip(names, probs, strict=True))) for k in (0, 1)]
     return {"map": map_name, "opponent": opponent, "episodes_per_script": episodes, "seed": seed,
+            "test_seeds": eval_seeds(min(num_envs, episodes), seed),
             "scripts": rows, "weights": dict(zip(names, (float(p) for p in probs), strict=True)),
-            MIXTURE_ROW: {"win_rate": mixture}}
+            MIXTURE_ROW: {"win_rate": mixture, "stderr": stderr, "ci95": ci95}}
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -328,8 +388,13 @@ def _callback_class() -> type:
             return True
 
         def _on_training_end(self) -> None:
+            self.close_bar()
+
+        def close_bar(self) -> None:
+            """Close the progress bar (at the end of training, or after an interrupt, which skips the end)."""
             if self.bar is not None:
                 self.bar.close()
+                self.bar = None
 
     return EvalAndProgress
 
@@ -381,10 +446,10 @@ def _evaluate_league(model: Any, league: Any, config: TrainConfig, core: Any) ->
     members = {}
     for member, prob in zip(league.scripts, league.probs, strict=True):
         # A fresh script per evaluation env: members keep per-battle memory sized to the training batch.
-        opponent = PolicyScript(member.policy, member.name, member.options) if isinstance(member, PolicyScript) \
-            else member.name
+        opponent = (PolicyScript(member.policy, member.name, member.options, member.time_limit)
+                    if isinstance(member, PolicyScript) else member.name)
         result = _evaluate_against(model, config.map_name, opponent, config.eval_episodes, config.eval_envs,
-                                   config.seed + 2_000_003, config.env_kwargs())
+                                   TEST_SEED_BASE, config.env_kwargs())
         members[member.name] = {"win_rate": result.win_rate, "prob": float(prob),
                                 "train_games": int(played.get(member.name, {}).get("games", 0))}
     return {"weighting": league.weighting, "members": members}
@@ -430,7 +495,7 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     numba.set_num_threads(min(config.env_threads, numba.config.NUMBA_NUM_THREADS))
     out = Path(config.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "config.json").write_text(json.dumps(asdict(config), indent=2) + "\n")
+    write_json(out / "config.json", asdict(config))
 
     opponent = opponent_from_text(config.opponent)
     kwargs = config.env_kwargs()
@@ -475,7 +540,7 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
 
     def evaluate_now(timesteps: int, train_results: Sequence[bool] = ()) -> dict[str, Any]:
         start = time.perf_counter()
-        result = evaluate(model, eval_env, config.eval_episodes, seed=config.seed + 1_000_003)
+        result = evaluate(model, eval_env, config.eval_episodes, seed=TEST_SEED_BASE)
         clock["eval"] += time.perf_counter() - start
         wall = time.perf_counter() - clock["start"] - clock["eval"]  # training time, evaluations left out
         row = {"timesteps": timesteps, "win_rate": result.win_rate, "mean_return": result.mean_return,
@@ -483,16 +548,19 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
                "train_win_rate": float(np.mean(train_results)) if len(train_results) else float("nan"),
                "train_episodes": len(train_results), "wall_s": wall,
                "env_s": timed.env_seconds, "env_fraction": timed.env_seconds / wall if wall > 0 else 0.0,
-               "per_opponent": {k: v["win_rate"] for k, v in result.per_opponent.items()}}
+               "wins": result.wins,
+               "per_opponent": {k: v["win_rate"] for k, v in result.per_opponent.items()},
+               "per_opponent_episodes": {k: int(v["episodes"]) for k, v in result.per_opponent.items()}}
         rows.append(row)
         _write_curve(out / "curve.csv", rows)
         return row
 
-    callback: Any = _callback_class()(evaluate_now, config.eval_interval, config.timesteps, config.progress)
+    progress: Any = _callback_class()(evaluate_now, config.eval_interval, config.timesteps, config.progress)
+    callback: Any = progress
     if league is not None:
         from stable_baselines3.common.callbacks import CallbackList
 
-        callback = CallbackList([callback, _league_callback_class()(league, native.core, config.league_interval)])
+        callback = CallbackList([progress, _league_callback_class()(league, native.core, config.league_interval)])
     evaluate_now(0)
     clock["start"] = time.perf_counter()
     clock["eval"] = 0.0
@@ -501,16 +569,19 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     try:
         model.learn(config.timesteps, callback=callback)
         if rows[-1]["timesteps"] != model.num_timesteps:
-            evaluate_now(model.num_timesteps, (callback.callbacks[0] if league is not None else callback)
-                         .take_train_results())
+            evaluate_now(model.num_timesteps, progress.take_train_results())
     except KeyboardInterrupt:  # Ctrl-C: keep what was learned, the curve so far and a summary that says so
         interrupted = True
     finally:
+        # SB3 skips the callback's end on an exception: close the bar here, so it does not draw itself again after
+        # the caller's "interrupted" message.
+        progress.close_bar()
         venv.close()
         eval_env.close()
-    model.save(out / "model.zip")
+    with atomic_path(out / "model.zip") as tmp:
+        model.save(tmp)
     plotted = _plot_curve(out / "curve.png", rows, f"MaskablePPO on {config.map_name} vs {config.opponent}")
-    summary = _summary(config, rows)
+    summary = _summary(config, rows, int(model.num_timesteps))
     if league is not None and not interrupted:
         league.update(league_win_rates(native.core))
         summary["league"] = _evaluate_league(model, league, config, native.core)
@@ -519,26 +590,44 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     summary["files"] = {"model": str(out / "model.zip"), "curve_csv": str(out / "curve.csv"),
                         "curve_png": str(out / "curve.png") if plotted else None,
                         "config": str(out / "config.json")}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_json(out / "summary.json", summary)
+    if summary["final_win_rate"] is not None:
+        final = next(r for r in reversed(rows) if r["timesteps"] == summary["final_win_rate_at"])
+        log(f"test evaluation at {final['timesteps']} steps: {format_spread(final['wins'], final['episodes'])}; "
+            f"{len(summary['test_seeds'])} test battles seeded {summary['test_seeds'][0]}..{summary['test_seeds'][-1]} "
+            "(the battles `smac-hard-gym eval` plays by default), training battles seeded "
+            f"{config.seed}..{config.seed + config.num_envs - 1}")
     return summary
 
 
-def _summary(config: TrainConfig, rows: list[dict[str, Any]]) -> dict[str, Any]:
+def _summary(config: TrainConfig, rows: list[dict[str, Any]], trained: int) -> dict[str, Any]:
+    """The run's summary: ``timesteps`` is the steps trained (``trained``); ``final_win_rate`` is the last test win
+    rate measured after training began and ``final_win_rate_at`` the step count it was measured at (both None when
+    the run stopped before its first evaluation after step 0: the untrained model's rate is in ``curve.csv``)."""
     final = rows[-1]
+    measured = final if final["timesteps"] > 0 or trained == 0 else None
     reached = next((r["timesteps"] for r in rows if r["win_rate"] >= 0.8), None)
+    spread = win_rate_spread(measured["wins"], measured["episodes"]) if measured else \
+        {"stderr": None, "ci95": None}
     return {
-        "map": config.map_name, "opponent": config.opponent, "timesteps": final["timesteps"],
-        "final_win_rate": final["win_rate"], "best_win_rate": max(r["win_rate"] for r in rows),
+        "map": config.map_name, "opponent": config.opponent, "timesteps": trained,
+        "final_win_rate": measured["win_rate"] if measured else None,
+        "final_win_rate_at": measured["timesteps"] if measured else None,
+        "best_win_rate": max(r["win_rate"] for r in rows),
         "final_train_win_rate": final["train_win_rate"] if final["train_episodes"] else None,
         "final_train_episodes": final["train_episodes"],
         "first_timesteps_at_0.8": reached, "train_wall_s": final["wall_s"], "env_s": final["env_s"],
         "env_fraction": final["env_fraction"], "final_per_opponent": final["per_opponent"],
         "eval_episodes": config.eval_episodes,
+        "final_win_rate_stderr": spread["stderr"], "final_win_rate_ci95": spread["ci95"],
+        "final_per_opponent_episodes": final["per_opponent_episodes"],
+        "test_seeds": eval_seeds(min(config.eval_envs, config.eval_episodes)),
+        "training_seeds": [config.seed, config.seed + config.num_envs - 1],
     }
 
 
 def _write_curve(path: Path, rows: list[dict[str, Any]]) -> None:
-    with path.open("w", newline="") as handle:
+    with atomic_write(path, "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(CURVE_COLUMNS)
         for row in rows:
@@ -576,8 +665,11 @@ def _plot_curve(path: Path, rows: list[dict[str, Any]], title: str) -> bool:
     handles = left.get_legend_handles_labels()[0] + right.get_legend_handles_labels()[0]
     left.legend(handles=handles, loc="center right", fontsize="small")
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=path.suffix.lstrip(".") or "png")
+    finally:
+        plt.close(fig)
     return True
 
 
@@ -586,9 +678,53 @@ def load_run_config(model_path: str | Path) -> TrainConfig | None:
     path = Path(model_path).with_name("config.json")
     if not path.is_file():
         return None
-    data = json.loads(path.read_text())
+    data = read_json(path, "run config")
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: malformed run config (a JSON object of TrainConfig fields expected, got "
+                         f"{type(data).__name__})")
     known = {f.name for f in fields(TrainConfig)}
-    return TrainConfig(**{k: v for k, v in data.items() if k in known})
+    for key in ("map_name", "opponent", "obs_mode", "out", "tensorboard", "league_weighting"):
+        if key in data and not isinstance(data[key], str):
+            raise ValueError(f"{path}: malformed run config ({key} is {data[key]!r}, expected a string)")
+    try:
+        return TrainConfig(**{k: v for k, v in data.items() if k in known})
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{path}: malformed run config ({err})") from None
+
+
+def read_json(path: str | Path, what: str = "JSON file") -> Any:
+    """The JSON in ``path``; a file that cannot be read or parsed raises one ValueError naming it (a missing file
+    raises FileNotFoundError)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no {what} at {str(path)!r}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ValueError(f"{path}: unreadable {what} ({err})") from None
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as err:
+        raise ValueError(f"{path}: malformed {what} ({err})") from None
+
+
+def load_model(path: str | Path) -> Any:
+    """A MaskablePPO model saved by :func:`train` (``model.zip``), on the CPU; a file that is not one raises one
+    ValueError naming it. Loading runs the pickled code the file holds (stable-baselines3's format): load only files
+    you trust."""
+    from sb3_contrib import MaskablePPO
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no model at {str(path)!r}")
+    try:
+        return MaskablePPO.load(path, device="cpu")
+    except MemoryError:
+        raise
+    except Exception as err:  # a truncated zip, random bytes, another library's pickle: whatever SB3 raises
+        detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
+        raise ValueError(f"{path}: not a saved MaskablePPO model ({type(err).__name__}"
+                         f"{': ' + detail if detail else ''})") from None
 
 
 def format_table(rows: Sequence[tuple[str, ...]]) -> str:

@@ -161,6 +161,39 @@ def test_mean_curve_over_seeds():
     assert low.tolist() == [0.0, 0.5, 0.5] and high.tolist() == [0.0, 1.0, 1.0]
 
 
+def test_report_renders_a_published_results_json_without_run_folders(tmp_path, capsys):
+    # A published sweep (docs/baselines/<name>/) keeps results.json and the tables, not the runs: --report renders it.
+    for map_name in ("3m", "8m", "MMM"):
+        for seed, final in enumerate([1.0, 0.5]):
+            _fake_run(tmp_path / "sweep", map_name, "smac", seed, final, [(0, 0.0), (1000, final)],
+                      blackbox={"line_front": final / 2})
+    results = aggregate(tmp_path / "sweep")
+    results["config"] = {"maps": ["MMM"]}  # a sweep finished over several sessions: its config names the last one's
+    published = tmp_path / "published"
+    published.mkdir()
+    (published / "results.json").write_text(json.dumps(results))
+    assert main(["baselines", "--out", str(published), "--report", str(tmp_path / "report.md")]) == 0
+    text = (tmp_path / "report.md").read_text()
+    assert text == report_markdown(results, ["3m", "8m", "MMM"])
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "0.75 ± 0.25" in line]
+    listed = {line.split("|")[1].strip() for line in rows}
+    assert listed == {r["map"] for r in results["table"]} == {"3m", "8m", "MMM"}
+    assert not (published / "runs").exists()  # nothing was aggregated or written under --out
+
+
+def test_published_sweep_report_lists_every_map():
+    # docs/baselines/sweep-1M is the published 23-map sweep: its report lists all 23 maps with our win rates.
+    from pathlib import Path
+
+    out = Path(__file__).resolve().parents[1] / "docs" / "baselines" / "sweep-1M"
+    results = json.loads((out / "results.json").read_text())
+    text = report_markdown(results, results["config"].get("maps") or None)
+    maps = {r["map"] for r in results["table"]}
+    assert len(maps) == 23
+    for map_name in maps:
+        assert any(line.startswith(f"| {map_name} |") and "not run yet" not in line for line in text.splitlines())
+
+
 def test_report_puts_ours_next_to_the_paper(tmp_path):
     for seed, final in enumerate([1.0, 0.5]):
         _fake_run(tmp_path, "3m", "smac", seed, final, [(0, 0.0), (1000, final)],
@@ -257,7 +290,7 @@ def test_mixing_report_lists_values(tmp_path):
     (["--timesteps", "-5"], "timesteps must be a positive int"),
     (["--jobs", "0"], "jobs must be a positive int"),
     (["--maps", "3m", "--opponents", "nobody"], "unknown opponent 'nobody' for map '3m'"),
-    (["--report", "r.md", "--out", "/nonexistent/results"], "no runs under /nonexistent/results"),
+    (["--report", "r.md", "--out", "/nonexistent/results"], "no runs under /nonexistent/results and no results.json"),
 ])
 def test_cli_bad_input_is_one_line(argv, message, capsys):
     assert main(["baselines", *argv]) == 2
@@ -292,3 +325,65 @@ def test_tiny_sweep_end_to_end(tmp_path, capsys):
 
     baselines.value_main(str(run / "model.zip"), "smac,base", 4, 0, str(tmp_path / "value.json"))  # a mixture
     assert math.isfinite(json.loads((tmp_path / "value.json").read_text())["mean_value"])
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Malformed files under --out: `baselines --report` gives one line naming the file, never a traceback.
+
+
+def _corrupt(name, content):
+    def apply(path):
+        (path / name).write_bytes(content if isinstance(content, bytes) else json.dumps(content).encode())
+    return apply
+
+
+_SUMMARY = {"map": "3m", "opponent": "smac", "timesteps": 100, "final_win_rate": 0.5, "best_win_rate": 0.5,
+            "train_wall_s": 1.0, "interrupted": False, "final_per_opponent": {}}
+
+MALFORMED = [
+    ("summary.json", _corrupt("summary.json", {**_SUMMARY, "final_win_rate": "high"}), "final_win_rate"),
+    ("summary.json", _corrupt("summary.json", {**_SUMMARY, "final_win_rate": 7.5}), "final_win_rate"),
+    ("summary.json", _corrupt("summary.json", {**_SUMMARY, "timesteps": None}), "timesteps"),
+    ("summary.json", _corrupt("summary.json", {k: v for k, v in _SUMMARY.items() if k != "map"}), "'map'"),
+    ("summary.json", _corrupt("summary.json", {**_SUMMARY, "final_per_opponent": [1, 2]}), "final_per_opponent"),
+    ("config.json", _corrupt("config.json", b"\x00\xff garbage"), "config.json"),
+    ("config.json", _corrupt("config.json", [1, 2, 3]), "config.json"),
+    ("config.json", _corrupt("config.json", {"seed": "zero"}), "seed"),
+    ("curve.csv", _corrupt("curve.csv", b"timesteps,win_rate\n0,abc\n"), "curve.csv"),
+    ("curve.csv", _corrupt("curve.csv", b"\x00\x01\x02\xff\xfe"), "curve.csv"),
+    ("curve.csv", _corrupt("curve.csv", b"a,b\n1,2\n"), "curve.csv"),
+    ("blackbox.json", _corrupt("blackbox.json", b"{truncated"), "blackbox.json"),
+    ("blackbox.json", _corrupt("blackbox.json", {"scripts": {}}), "blackbox.json"),
+    ("blackbox.json", _corrupt("blackbox.json", {"scripts": {"a": {"win_rate": None}}, "mixture": {"win_rate": 0},
+                                                 "weights": {}}), "win_rate"),
+    ("value.json", _corrupt("value.json", {"mean_value": float("nan")}), "mean_value"),
+    ("value.json", _corrupt("value.json", b""), "value.json"),
+]
+
+
+@pytest.mark.parametrize(("name", "corrupt", "named"), MALFORMED, ids=[f"{m[0]}-{i}" for i, m in enumerate(MALFORMED)])
+def test_report_on_malformed_run_files_is_one_line(tmp_path, capsys, name, corrupt, named):
+    path = _fake_run(tmp_path, "3m", "smac", 0, 0.5, [(0, 0.0), (100, 0.5)], blackbox={"line_front": 0.5},
+                     value=0.1)
+    corrupt(path)
+    assert main(["baselines", "--out", str(tmp_path), "--report", str(tmp_path / "report.md")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("smac-hard-gym baselines: error: ") and err.count("\n") == 1, err
+    assert name in err and named in err and "Traceback" not in err, err
+    assert not (tmp_path / "report.md").exists()
+
+
+def test_report_with_malformed_results_json_is_one_line(tmp_path, capsys):
+    _fake_run(tmp_path, "3m", "smac", 0, 0.5, [(0, 0.0), (100, 0.5)])
+    for content in (b"\xff\xfe", b"[1, 2]", b'{"config": 5}', b'{"config": {"maps": 3}}'):
+        (tmp_path / "results.json").write_bytes(content)
+        assert main(["baselines", "--out", str(tmp_path), "--report", str(tmp_path / "report.md")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "results.json" in err and "Traceback" not in err, (content, err)
+
+
+def test_unreadable_summary_counts_as_partial(tmp_path):
+    path = _fake_run(tmp_path, "3m", "smac", 0, 0.5, [(0, 0.0), (100, 0.5)])
+    for content in (b"", b"\xff\xfe", b"[1]", b'{"interrupted": "no"}', b"{"):
+        (path / "summary.json").write_bytes(content)
+        assert run_state(path) == "partial", content

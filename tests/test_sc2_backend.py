@@ -90,7 +90,10 @@ def _game_children() -> list[int]:
     return found
 
 
-def _wait_gone(pids: list[int], seconds: float = 10.0, allow_zombie: bool = False) -> list[int]:
+def _wait_gone(pids: list[int], seconds: float = 120.0, allow_zombie: bool = False) -> list[int]:
+    """The processes of ``pids`` still there (and, unless ``allow_zombie``, unreaped) after they all went or
+    ``seconds`` passed: a generous deadline that only stops a wait that would never end (processes go in well
+    under a second on a quiet machine); it returns as soon as they are gone."""
     deadline = time.monotonic() + seconds
     while True:
         left = [p for p in pids if _state(p) is not None and not (allow_zombie and _state(p) == "Z")]
@@ -118,6 +121,12 @@ def sc2path(tmp_path):
     return make_sc2path(tmp_path / "sc2", maps=["3m", "MMM", "2s3z"])
 
 
+def _options(sc2path):
+    # The protocol test server runs the engine, whose first step on an empty numba cache compiles it: on a loaded
+    # machine that can pass the 60 s default request timeout, which is about a real game that stopped answering.
+    return {"sc2path": str(sc2path), "request_timeout": 900.0}
+
+
 def _random_actions(rng, avail):
     return np.array([[rng.choice(np.flatnonzero(a)) for a in row] for row in avail])
 
@@ -137,7 +146,7 @@ def _assert_same(sc, ref, sides, where):
 
 def test_3m_two_battles_script_mode_match_native(sc2path):
     kwargs = dict(mode="script", opponent="default", seed=11)
-    sc = TwoPlayerCore("3m", 2, backend="sc2", backend_options={"sc2path": str(sc2path)}, **kwargs)
+    sc = TwoPlayerCore("3m", 2, backend="sc2", backend_options=_options(sc2path), **kwargs)
     ref = TwoPlayerCore("3m", 2, backend_options={"cooldown_jitter": None}, **kwargs)
     ref.backend = Float32Native(ref.backend)
     ref.reset(seed=11)
@@ -165,7 +174,7 @@ def test_3m_two_battles_script_mode_match_native(sc2path):
 
 
 def _env_pair(map_name, sc2path, **kwargs):
-    sc = StarCraft2Env(map_name, backend="sc2", backend_options={"sc2path": str(sc2path)}, seed=5, **kwargs)
+    sc = StarCraft2Env(map_name, backend="sc2", backend_options=_options(sc2path), seed=5, **kwargs)
     ref = StarCraft2Env(map_name, seed=5, backend_options={"cooldown_jitter": None}, **kwargs)
     ref._core.backend = Float32Native(ref._core.backend)
     return sc, ref
@@ -262,7 +271,9 @@ def test_a_game_that_never_answers_gives_a_clear_timeout(tmp_path, mode, attempt
     with pytest.raises(Sc2LaunchError) as info:
         backend.reset()
     elapsed = time.monotonic() - started
-    assert elapsed < attempts * 1.5 + 8, f"took {elapsed:.1f} s"
+    # The 1.5 s launch timeout was honoured rather than the default of 120 s per attempt (what the message says
+    # below is the behaviour; this bound, far above the few seconds a quiet machine needs, only tells the two apart).
+    assert elapsed < 100, f"took {elapsed:.1f} s"
     message = str(info.value)
     assert f"{attempts} attempt(s) of at most 1.5 s" in message and "did not answer in time" in message
     assert str(root) in message
@@ -365,7 +376,7 @@ def test_real_game_smoke():
 
 
 def test_starcraft2env_reports_a_restarted_game_and_saves_replays(sc2path, tmp_path):
-    env = StarCraft2Env("3m", backend="sc2", backend_options={"sc2path": str(sc2path)}, seed=1,
+    env = StarCraft2Env("3m", backend="sc2", backend_options=_options(sc2path), seed=1,
                         replay_dir=str(tmp_path / "replays"))
     try:
         env.reset()
@@ -389,7 +400,7 @@ def test_subprocess_vector_env_of_two_workers_on_the_sc2_backend(sc2path):
     from smac_hard_gym.envs.subproc import make_subproc_env
 
     envs = make_subproc_env("3m", num_workers=2, envs_per_worker=1, autoreset_mode="SameStep", timeout=120,
-                            backend="sc2", backend_options={"sc2path": str(sc2path)}, opponent="base")
+                            backend="sc2", backend_options=_options(sc2path), opponent="base")
     try:
         obs, infos = envs.reset(seed=3)
         assert obs.shape == (2, 3 * 30)
@@ -413,7 +424,7 @@ def test_gymnasium_env_reports_a_restarted_game_as_truncated(sc2path):
 
     import smac_hard_gym  # noqa: F401  (registers the ids)
 
-    env = gym.make("SMACHard-3m-v0", backend="sc2", backend_options={"sc2path": str(sc2path)}, opponent="base")
+    env = gym.make("SMACHard-3m-v0", backend="sc2", backend_options=_options(sc2path), opponent="base")
     try:
         obs, info = env.reset(seed=0)
         stop = np.ones(3, dtype=np.int64)

@@ -3,12 +3,16 @@
 ``--opponent all`` evaluates every script that plays the map, ``blackbox`` the map's SMAC-HARD pool without
 ``base`` (the paper's black-box evaluation), ``default`` the full pool, or a script name (names joined by commas).
 The mixture row is the pool's expected win rate: the scripts' win rates weighted by the pool's probabilities.
+
+By default every script plays the test battles that ``train`` evaluates on (seeded from
+:data:`~smac_hard_gym.training.TEST_SEED_BASE`, disjoint from every run's training battles), so a model's win rate
+against a script here is the one ``train`` reported against that script alone, with the same episodes. Each row
+gives the episodes, the standard error and a 95% Wilson interval of its win rate.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
@@ -16,17 +20,30 @@ HELP = "evaluate a trained model's win rate per opponent script and for the mixt
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--model", required=True, help="path of a model.zip written by `smac-hard-gym train`")
+    parser.add_argument("--model", required=True,
+                        help="path of a model.zip written by `smac-hard-gym train` (loading runs the pickled code "
+                             "it holds, as stable-baselines3 loads models: only load files you trust)")
     parser.add_argument("--map", default=None, help="map name (default: the map the model was trained on)")
     parser.add_argument("--opponent", default="all", help="all | default | blackbox | NAME[,NAME...] (default all)")
     parser.add_argument("--episodes", type=int, default=32, help="episodes per script (default 32)")
     parser.add_argument("--num-envs", type=int, default=16, help="battles stepped together (default 16)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=None,
+                        help="seed of the first test battle (battle b: SEED + b; default: the test seeds train "
+                             "evaluates on, 1000000000 + b)")
     parser.add_argument("--json", default=None, help="write the results here (default: next to the model)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from smac_hard_gym.training import evaluate_scripts, format_table, load_run_config, resolve_opponents
+    from smac_hard_gym.files import write_json
+    from smac_hard_gym.training import (
+        TEST_SEED_BASE,
+        eval_seeds,
+        evaluate_scripts,
+        format_table,
+        load_run_config,
+        resolve_opponents,
+        training_seeds,
+    )
 
     model_path = Path(args.model)
     if not model_path.is_file():
@@ -38,30 +55,43 @@ def run(args: argparse.Namespace) -> int:
     if map_name is None:
         raise SystemExit("the model has no config.json next to it; pass --map")
     env_kwargs = run_config.env_kwargs() if run_config else {}
+    seed = TEST_SEED_BASE if args.seed is None else args.seed
+    if seed < 0:
+        raise SystemExit(f"--seed must be >= 0, got {seed}")
+    seeds = eval_seeds(min(args.num_envs, args.episodes), seed)
+    if run_config is not None and set(seeds) & set(training_seeds(run_config.seed, run_config.num_envs)):
+        print(f"warning: test battles seeded {seeds[0]}..{seeds[-1]} include seeds of the model's training battles "
+              f"({run_config.seed}..{run_config.seed + run_config.num_envs - 1}); leave --seed out to evaluate on "
+              "the test seeds")
     try:
         names, _ = resolve_opponents(map_name, args.opponent)
     except (TypeError, ValueError) as err:
         raise SystemExit(f"smac-hard-gym eval: {err}") from None
 
     import torch
-    from sb3_contrib import MaskablePPO
+
+    from smac_hard_gym.training import load_model
 
     torch.set_num_threads(1)
-    model = MaskablePPO.load(model_path, device="cpu")
+    model = load_model(model_path)  # a file that is not a model: one ValueError naming it
     _check_fits(model, map_name, env_kwargs, run_config.map_name if run_config else None)
-    print(f"model {model_path} on {map_name}: {len(names)} script(s) x {args.episodes} episodes, seed {args.seed}")
+    print(f"model {model_path} on {map_name}: {len(names)} script(s) x {args.episodes} episodes, test battles "
+          f"seeded {seeds[0]}..{seeds[-1]}")
     results = evaluate_scripts(model, map_name, args.opponent, args.episodes, num_envs=args.num_envs,
-                               seed=args.seed, env_kwargs=env_kwargs, log=print)
-    rows = [("opponent", "weight", "win rate", "wins", "mean return")]
+                               seed=seed, env_kwargs=env_kwargs, log=print)
+    rows = [("opponent", "weight", "win rate", "stderr", "95% interval", "wins", "mean return")]
     for name, row in results["scripts"].items():
-        rows.append((name, f"{results['weights'][name]:.3f}", f"{row['win_rate']:.3f}",
-                     f"{row['wins']}/{row['episodes']}", f"{row['mean_return']:.2f}"))
-    rows.append((f"{args.opponent} (mixture)", "1.000", f"{results['mixture']['win_rate']:.3f}", "", ""))
+        low, high = row["ci95"]
+        rows.append((name, f"{results['weights'][name]:.3f}", f"{row['win_rate']:.3f}", f"{row['stderr']:.3f}",
+                     f"[{low:.3f}, {high:.3f}]", f"{row['wins']}/{row['episodes']}", f"{row['mean_return']:.2f}"))
+    mixture = results["mixture"]
+    rows.append((f"{args.opponent} (mixture)", "1.000", f"{mixture['win_rate']:.3f}", f"{mixture['stderr']:.3f}",
+                 f"[{mixture['ci95'][0]:.3f}, {mixture['ci95'][1]:.3f}]", "", ""))
     print()
     print(format_table(rows))
     default_name = f"eval_{map_name}_{args.opponent.replace(',', '+')}.json"
     out = Path(args.json) if args.json else model_path.with_name(default_name)
-    out.write_text(json.dumps(results, indent=2) + "\n")
+    write_json(out, results)
     print(f"\nwrote {out}")
     return 0
 
