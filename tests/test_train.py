@@ -118,10 +118,59 @@ def test_ctrl_c_during_training_keeps_model_curve_and_summary(tmp_path, capsys, 
     monkeypatch.setattr(MaskablePPO, "learn", interrupted_learn)
     out = tmp_path / "run"
     assert main(["train", *_SMALL_RUN, "--out", str(out)]) == 130
-    assert "interrupted after 0 steps: model, curve and summary saved in" in capsys.readouterr().out
+    assert "interrupted after 0 steps (last test win rate" in capsys.readouterr().out
     for name in ("model.zip", "curve.csv", "summary.json"):
         assert (out / name).is_file(), name
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+
+
+def _interrupt_learn_at(monkeypatch, steps):
+    """MaskablePPO.learn raising KeyboardInterrupt (Ctrl-C) once ``steps`` env steps have been trained."""
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+
+    learn = MaskablePPO.learn
+
+    class CtrlC(BaseCallback):
+        def _on_step(self):
+            if self.num_timesteps >= steps:
+                raise KeyboardInterrupt
+            return True
+
+    def interrupted_learn(self, total_timesteps, callback=None, **kwargs):
+        return learn(self, total_timesteps, callback=CallbackList([callback, CtrlC()]), **kwargs)
+
+    monkeypatch.setattr(MaskablePPO, "learn", interrupted_learn)
+
+
+@pytest.mark.parametrize(("eval_every", "rate_at"), [(1024, None), (256, 256)])
+def test_ctrl_c_mid_run_reports_the_real_steps_and_the_last_measured_rate(tmp_path, capsys, monkeypatch,
+                                                                          eval_every, rate_at):
+    import gc
+
+    _interrupt_learn_at(monkeypatch, 300)  # 4 envs x 75 steps: past the first rollout of 256
+    out = tmp_path / "run"
+    argv = ["train", "--map", "3m", "--timesteps", "2048", "--num-envs", "4", "--n-steps", "64", "--batch-size",
+            "128", "--epochs", "1", "--eval-every", str(eval_every), "--eval-episodes", "2", "--out", str(out)]
+    assert main(argv) == 130  # with the progress bar on
+    captured = capsys.readouterr()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] is True
+    assert summary["timesteps"] == summary["timesteps_trained"] == 300
+    with open(out / "curve.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [int(r["timesteps"]) for r in rows] == ([0] if rate_at is None else [0, rate_at])
+    assert summary["final_win_rate_at"] == rate_at
+    if rate_at is None:
+        assert summary["final_win_rate"] is None  # nothing measured since training began
+        assert "interrupted after 300 steps (no test win rate measured since training began" in captured.out
+    else:
+        assert summary["final_win_rate"] == pytest.approx(float(rows[-1]["win_rate"]))
+        assert f"interrupted after 300 steps (last test win rate {summary['final_win_rate']:.3f} at {rate_at} " \
+               "steps)" in captured.out
+    assert "train:" in captured.err  # the bar was drawn while training ...
+    gc.collect()
+    assert capsys.readouterr().err == ""  # ... and closed before the message: nothing draws it again afterwards
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []
 
 
 def test_eval_names_the_map_a_model_was_trained_on(tmp_path, capsys):
@@ -177,3 +226,86 @@ def test_kernel_cache_is_warm_once_an_env_has_stepped():
     assert kernels_cached() is True  # compiled (or loaded) in this process, so on disk now
     # Kernels compiled per unit count share numba's index with the generic ones: a count never compiled is not cached.
     assert kernels_cached(997) is False
+
+
+@pytest.mark.parametrize("content", [b"", b"PK\x03\x04 truncated", bytes(range(256)) * 8, b"not a zip at all"],
+                         ids=["empty", "truncated-zip", "random", "text"])
+def test_eval_on_a_malformed_model_is_one_line(tmp_path, capsys, content):
+    model = tmp_path / "model.zip"
+    model.write_bytes(content)
+    assert main(["eval", "--model", str(model), "--map", "3m", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("smac-hard-gym eval: error: ") and err.count("\n") == 1, err
+    assert "not a saved MaskablePPO model" in err and str(model) in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("config", [b"{broken", b"\xff\xfe", b"[1, 2]", b'{"timesteps": -3}', b'{"map_name": 5}'])
+def test_eval_with_a_malformed_run_config_is_one_line(tmp_path, capsys, config):
+    (tmp_path / "model.zip").write_bytes(b"PK")
+    (tmp_path / "config.json").write_bytes(config)
+    assert main(["eval", "--model", str(tmp_path / "model.zip"), "--episodes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "config.json" in err and "Traceback" not in err, err
+
+
+def test_train_and_eval_share_the_test_battles_and_never_reuse_training_seeds(tmp_path, capsys, monkeypatch):
+    """One evaluation protocol: train's final test evaluation and `eval` with its defaults play the same test
+    battles (TEST_SEED_BASE + b) and give the same win rate; no test battle is seeded like a training battle."""
+    from smac_hard_gym.training import TEST_SEED_BASE, eval_seeds, training_seeds
+
+    seeds_by_env: dict[int, list[int]] = {}
+    order: list[int] = []
+    sizes: dict[int, int] = {}
+    reset_battles = NativeVectorEnv._reset_battles
+
+    def recording(self, rows, seeds, in_place=False):
+        if id(self) not in seeds_by_env:
+            order.append(id(self))
+            sizes[id(self)] = self.num_envs
+            seeds_by_env[id(self)] = []
+        seeds_by_env[id(self)] += [s for s in (seeds or []) if s is not None]
+        return reset_battles(self, rows, seeds, in_place)
+
+    monkeypatch.setattr(NativeVectorEnv, "_reset_battles", recording)
+    out = tmp_path / "run"
+    assert main(["train", "--map", "3m", "--opponent", "base", "--timesteps", "2048", "--num-envs", "4",
+                 "--n-steps", "64", "--batch-size", "128", "--epochs", "1", "--eval-every", "2048", "--seed", "5",
+                 "--out", str(out), "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    train_env, test_env = sorted(order[:2], key=sizes.get)  # 4 training battles, 16 test battles
+    assert set(seeds_by_env[train_env]) == set(training_seeds(5, 4)) == {5, 6, 7, 8}
+    assert set(seeds_by_env[test_env]) == set(eval_seeds(16)) == set(range(TEST_SEED_BASE, TEST_SEED_BASE + 16))
+    assert summary["test_seeds"] == eval_seeds(16) and summary["training_seeds"] == [5, 8]
+    assert summary["eval_episodes"] == 32 and summary["final_win_rate_stderr"] is not None
+    low, high = summary["final_win_rate_ci95"]
+    assert low <= summary["final_win_rate"] <= high
+    assert "test evaluation at 2048 steps:" in printed and "95% Wilson interval" in printed
+
+    assert main(["eval", "--model", str(out / "model.zip"), "--opponent", "base"]) == 0  # defaults otherwise
+    printed = capsys.readouterr().out
+    eval_env = order[2]
+    assert set(seeds_by_env[eval_env]) == set(eval_seeds(16))
+    assert not set(seeds_by_env[eval_env]) & set(seeds_by_env[train_env])
+    row = json.loads((out / "eval_3m_base.json").read_text())["scripts"]["base"]
+    assert row["episodes"] == 32 and row["win_rate"] == summary["final_win_rate"]
+    assert row["stderr"] == pytest.approx(summary["final_win_rate_stderr"])
+    with open(out / "curve.csv") as handle:
+        final = list(csv.DictReader(handle))[-1]
+    assert row["mean_return"] == pytest.approx(float(final["mean_return"]), abs=1e-4)  # the same episodes
+    assert "warning" not in printed and "stderr" in printed
+
+
+def test_training_seeds_stay_below_the_test_seeds():
+    from smac_hard_gym.training import TEST_SEED_BASE, TrainConfig, eval_seeds, training_seeds, win_rate_spread
+
+    TrainConfig(seed=TEST_SEED_BASE - 64, num_envs=64, out="x")
+    for seed in (-1, TEST_SEED_BASE - 63, TEST_SEED_BASE):
+        with pytest.raises(ValueError, match="seed must be an int"):
+            TrainConfig(seed=seed, num_envs=64, out="x")
+    for seed, num_envs in ((0, 64), (TEST_SEED_BASE - 1024, 1024), (12345, 7)):
+        assert not set(training_seeds(seed, num_envs)) & set(eval_seeds(1024))
+    spread = win_rate_spread(30, 32)
+    assert spread["episodes"] == 32 and spread["stderr"] == pytest.approx((30 / 32 * 2 / 32 / 32) ** 0.5)
+    assert spread["ci95"][0] < 30 / 32 < spread["ci95"][1] <= 1.0
+    assert win_rate_spread(0, 32)["ci95"][0] == 0.0 and win_rate_spread(0, 32)["ci95"][1] > 0.0

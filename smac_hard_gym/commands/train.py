@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
 
@@ -17,7 +18,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", default="3m", help="map name (see `smac-hard-gym maps`; default 3m)")
     parser.add_argument("--opponent", default="default",
                         help="'default' (the map's SMAC-HARD pool), 'blackbox', a script name, a saved model "
-                             "(path/to/model.zip, played from its own side's features), or these joined by commas "
+                             "(path/to/model.zip, played from its own side's features; loading it runs the pickled "
+                             "code inside, as stable-baselines3 loads models: only name files you trust), or these "
+                             "joined by commas "
                              "(see `smac-hard-gym scripts --map M`)")
     parser.add_argument("--timesteps", type=int, default=50_000, help="env steps to train (default 50000)")
     parser.add_argument("--num-envs", type=int, default=64, help="battles stepped together (default 64)")
@@ -89,17 +92,19 @@ def run(args: argparse.Namespace) -> int:
     for key, value in asdict(config).items():
         print(f"  {key:<15} {value}")
     print(f"  {'eval_interval':<15} {config.eval_interval}")
-    from smac_hard_gym.engine import SPECIALIZE_MIN_BATCH
-    from smac_hard_gym.kernel_cache import COMPILING_NOTICE, kernels_cached
-    from smac_hard_gym.maps import load_map
+    missing = _kernels_to_compile(config)
+    if missing is None or missing:
+        from smac_hard_gym.kernel_cache import compiling_notice
 
-    battles = config.num_envs // config.ray_actors if config.ray else config.num_envs
-    spec = load_map(config.map_name)
-    if not kernels_cached(spec.n_red + spec.n_blue if battles >= SPECIALIZE_MIN_BATCH else None):
-        print(COMPILING_NOTICE, flush=True)
+        print(compiling_notice(missing), flush=True)
     summary = train(config)
     if summary["interrupted"]:
-        print(f"\ninterrupted after {summary['timesteps_trained']} steps: model, curve and summary saved in "
+        if summary["final_win_rate"] is None:
+            measured = "no test win rate measured since training began (the first evaluation comes at " \
+                       f"{config.eval_interval} steps)"
+        else:
+            measured = f"last test win rate {summary['final_win_rate']:.3f} at {summary['final_win_rate_at']} steps"
+        print(f"\ninterrupted after {summary['timesteps']} steps ({measured}): model, curve and summary saved in "
               f"{config.out}")
         return 130
     print()
@@ -122,3 +127,25 @@ def run(args: argparse.Namespace) -> int:
           f"training wall time ({summary['env_fraction']:.1%})")
     print("files: " + json.dumps({k: v for k, v in summary["files"].items() if v}))
     return 0
+
+
+def _kernels_to_compile(config: Any) -> list[str] | None:
+    """The kernels this run will compile (``kernel_cache.missing_kernels``): the engine's overloads its training and
+    evaluation batches step with (as ``BattleEngine`` picks them), and the feature kernels; None when unknown."""
+    import numba
+
+    from smac_hard_gym.engine import PARALLEL_MIN_BATCH, SPECIALIZE_MIN_BATCH
+    from smac_hard_gym.kernel_cache import missing_kernels
+    from smac_hard_gym.maps import load_map
+
+    spec = load_map(config.map_name)
+    threads = min(config.env_threads, numba.config.NUMBA_NUM_THREADS)
+    missing: list[str] = []
+    battles = config.num_envs // config.ray_actors if config.ray else config.num_envs
+    for batch in (battles, min(config.eval_envs, config.eval_episodes)):
+        found = missing_kernels(spec.n_red + spec.n_blue if batch >= SPECIALIZE_MIN_BATCH else None,
+                                parallel=threads > 1 and batch >= PARALLEL_MIN_BATCH)
+        if found is None:
+            return None
+        missing += [name for name in found if name not in missing]
+    return missing

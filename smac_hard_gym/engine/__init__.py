@@ -21,7 +21,7 @@ if os.environ.get("NUMBA_THREADING_LAYER", "workqueue") == "workqueue":
 
 from smac_hard_gym.engine.batch_ops import count_alive, reset_battles
 from smac_hard_gym.engine.direct import compiled_entry
-from smac_hard_gym.engine.kernels import step_batch, step_battles, step_kernels_for
+from smac_hard_gym.engine.kernels import GENERIC, step_batch, step_battles, step_kernels_for
 from smac_hard_gym.engine.scenario import Layout, build_layout
 from smac_hard_gym.engine.state import (
     BLUE,
@@ -43,9 +43,9 @@ from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.units import STATS, UNITS
 
 PARALLEL_MIN_BATCH = 16  # below this many battles a step runs on the calling thread
-# From this many battles on, the engine steps with kernels compiled for the map's unit count (``specialize``): about
-# 10% faster on 3m, for one compilation of about 90 s per unit count (then cached on disk): worth it for long runs of
-# big batches only.
+# From this many battles on, the engine steps with kernel overloads compiled for the map's unit count
+# (``specialize``; same results), for one compilation of about 20 s of CPU per unit count (then cached on disk; it
+# was 90-130 s while they inlined every helper): worth it for long runs of big batches only.
 SPECIALIZE_MIN_BATCH = 1024
 # SC2 delays every attack by a random -0.0625 to +0.125 game seconds (weapon data RandomDelayMin/Max; SMAX draws the
 # same range): -1 to +2 game loops.
@@ -73,8 +73,10 @@ class BattleEngine:
     ``step(commands)`` applies per-unit commands and advances ``step_mul`` game loops (8 = one SMAC step = half a
     Normal-speed second). Everything is deterministic: no random draw happens inside the engine.
 
-    ``specialize`` steps with kernels compiled for this map's number of units (same results, faster; the first use
-    of a unit count compiles for about 90 s). None (default): only from ``SPECIALIZE_MIN_BATCH`` battles on.
+    ``specialize`` steps with kernels compiled for this map's number of units (same results; the first use of a
+    unit count compiles for about 20 s of CPU). None (default): only from ``SPECIALIZE_MIN_BATCH`` battles on. With
+    one numba thread (``numba.set_num_threads(1)``, as ``train`` runs the engine) every batch steps on the calling
+    thread, so the parallel driver is never compiled.
     """
 
     def __init__(self, map_spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8,
@@ -114,8 +116,8 @@ class BattleEngine:
         if specialize is None:
             specialize = self.batch_size >= SPECIALIZE_MIN_BATCH
         self.specialized = specialize
-        self._step_batch, self._step_battles = (step_kernels_for(self.n_units) if specialize
-                                                else (step_batch, step_battles))
+        self._step_batch, self._step_battles, self._units = (step_kernels_for(self.n_units) if specialize
+                                                             else (step_batch, step_battles, GENERIC))
         self._direct_commands: Commands | None = None  # see _take_direct_serial
         self._direct_serial = self._step_battles
         lo, hi = (0.0, 0.0) if cooldown_jitter is None else (float(cooldown_jitter[0]), float(cooldown_jitter[1]))
@@ -169,9 +171,12 @@ class BattleEngine:
         t = self.terrain
         args = (self.state, cmd.kind, cmd.target, cmd.x, cmd.y, self._slot_stats, t.walk, t.next_hop, t.los,
                 t.open_field, self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter,
-                self._by_x, self._sort_key, self._engaged, self._x0, self._y0)
-        if self.batch_size >= PARALLEL_MIN_BATCH:
-            self._step_batch(*args, numba.get_num_threads(), self._next_battle)
+                self._by_x, self._sort_key, self._engaged, self._x0, self._y0, self._units)
+        # One thread (a training run's engine: ``train --env-threads 1``) steps on the calling thread whatever the
+        # batch: the parallel driver would run the same battles in the same order, and it is not compiled at all.
+        threads = numba.get_num_threads() if self.batch_size >= PARALLEL_MIN_BATCH else 1
+        if threads > 1:
+            self._step_batch(*args[:-1], threads, self._next_battle, self._units)
         elif cmd is self._direct_commands and act.ndim == 1:
             self._direct_serial(0, self.batch_size, *args)
         else:

@@ -22,12 +22,15 @@ Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechan
 
 - ``slot_stats[i, column]`` is the unit table row of the unit in slot i. A slot's type never changes (the map's
   layout fixes it), so the kernels read stats per slot, without going through ``utype``.
-- ``step_battles`` inlines the battle (``_step_battle``) into its loop over a range of battles, and both drivers are
+- ``step_battles`` inlines the battle (``_step_battle``) and its phases into its loop over a range of battles (the
+  phases' helpers are called: LLVM inlines the small ones), and both drivers are
   compiled without numba's reference counting (``_nrt=False``): they allocate nothing, and every row view and
   inlined helper argument otherwise cost an atomic increment and decrement on the state arrays' shared counters
   (half the serial time on 3m, and cache-line ping-pong between the threads). Called as a function, a battle also
   received the state (a tuple of 20 arrays) by value on every call; ``step_batch`` pays that once per chunk.
-- ``step_kernels_for`` compiles the drivers for one map's unit count, for big batches.
+- ``step_kernels_for`` gives the drivers' overloads for one map's unit count, for big batches.
+- Compile time: the phases are inlined into the battle, the helpers they call are not (see ``helper``), and the
+  unit count is a type (``units_marker``), not a closure, so one cached dispatcher serves every count.
 - Separation finds overlapping pairs by sweeping the units in x order (``_sort_by_x``) instead of testing all
   pairs: 27m_vs_30m's step took half the time after this.
 - ``step_batch`` hands battles to the worker threads in small chunks from a shared counter (``scheduling``), so a
@@ -36,7 +39,6 @@ Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechan
 
 from __future__ import annotations
 
-import functools
 import math
 from typing import Any
 
@@ -87,21 +89,28 @@ _INF = 1e300
 _SETTLE_PASSES = 16  # at most this many extra separation passes after the last loop of an env step
 _SETTLED = 0.05  # ... stopping once no overlap is deeper than this
 
+# The phases (and the battle) are inlined into ``step_battles`` by numba, before typing; every helper they call is a
+# kernel of its own, compiled once and called (LLVM still inlines the small ones into the loops). Inlining the
+# helpers too, at every call site, made ``step_battles`` take 60 s of CPU to compile, against 9 s now plus 6 s for
+# the helpers (numba 0.68). Speed: the same within noise on an idle 16-core host; on a loaded 2-core machine, one
+# thread, 3m at 4096 battles with the unit-count overloads, about 4% fewer steps per CPU second (median of 12
+# interleaved pairs). Calling the phases too compiled in 18 s but stepped 20-35% slower.
 inline = njit(cache=True, inline="always", error_model="numpy")
+helper = njit(cache=True, error_model="numpy", _nrt=False)
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # Small helpers.
 
 
-@inline
+@helper
 def _can_hit(slot_stats, i, j):
     if slot_stats[j, _IS_AIR] > 0:
         return slot_stats[i, _HITS_AIR] > 0
     return slot_stats[i, _HITS_GROUND] > 0
 
 
-@inline
+@helper
 def _edge_distance(xi, yi, xj, yj, radii):
     """Edge-to-edge distance of two units whose radii sum to ``radii``."""
     dx = xj - xi
@@ -109,7 +118,7 @@ def _edge_distance(xi, yi, xj, yj, radii):
     return math.sqrt(dx * dx + dy * dy) - radii
 
 
-@inline
+@helper
 def _within(xi, yi, xj, yj, limit):
     """Centre distance <= limit (reach plus both radii), without a square root."""
     dx = xj - xi
@@ -186,13 +195,13 @@ def _timers(n, alive, alive0, target, engaged, health, shield, energy, cooldown,
 # 2. Targeting.
 
 
-@inline
+@helper
 def _heal_wanted(alive, health, slot_stats, j):
     return (alive[j] and slot_stats[j, _IS_AIR] == 0 and (int(slot_stats[j, _ATTR]) & _BIO) != 0
             and health[j] < slot_stats[j, _HEALTH])
 
 
-@inline
+@helper
 def _acquire_heal(n, i, side, alive, x, y, health, target, slot_stats):
     """Non-passive medivacs heal the nearest damaged biological ally within scan range."""
     scan = slot_stats[i, _SCAN]
@@ -214,13 +223,13 @@ def _acquire_heal(n, i, side, alive, x, y, health, target, slot_stats):
     target[i] = best
 
 
-@inline
+@helper
 def _threatens(slot_stats, j, i):
     """Unit j has a weapon that can damage unit i (medivacs threaten nobody)."""
     return slot_stats[j, _DAMAGE] > 0 and slot_stats[j, _WEAPON] != WEAPON_HEAL and _can_hit(slot_stats, j, i)
 
 
-@inline
+@helper
 def _rank(i, j, engaged, slot_stats):
     """SC2's acquisition priority of enemy j for unit i, best first: 0 j is attacking i, 1 j can hurt i, 2 other.
 
@@ -234,7 +243,7 @@ def _rank(i, j, engaged, slot_stats):
     return 2
 
 
-@inline
+@helper
 def _scan(n, i, reach, responder, side, alive, x, y, engaged, attacker, slot_stats):
     """SC2's automatic acquisition: the best enemy for unit i, or NO_UNIT.
 
@@ -265,7 +274,7 @@ def _scan(n, i, reach, responder, side, alive, x, y, engaged, attacker, slot_sta
     return best
 
 
-@inline
+@helper
 def _attacker_in_range(n, i, side, alive, x, y, engaged, slot_stats):
     """The closest enemy that was attacking unit i (loop-start snapshot) from within i's weapon range, or NO_UNIT."""
     best = NO_UNIT
@@ -282,7 +291,7 @@ def _attacker_in_range(n, i, side, alive, x, y, engaged, slot_stats):
     return best
 
 
-@inline
+@helper
 def _acquire(n, i, o, passive, side, alive, x, y, target, engaged, attacker, slot_stats):
     """SC2's target choice for a unit that acquires on its own (idle, attack-moving or holding); see ``_targeting``."""
     hold = o == ORDER_HOLD
@@ -358,7 +367,7 @@ def _targeting(n, side, alive, x, y, health, order, order_target, target, engage
 # 3. Movement.
 
 
-@inline
+@helper
 def _cell(v, size):
     c = int(v)
     if c < 0:
@@ -368,7 +377,7 @@ def _cell(v, size):
     return c
 
 
-@inline
+@helper
 def _waypoint(mover, px, py, gx, gy, walk, next_hop, los):
     """Where a walker heads now to reach (gx, gy): the goal if visible, else the farthest visible path cell."""
     mx, my = walk.shape[1], walk.shape[2]
@@ -389,7 +398,7 @@ def _waypoint(mover, px, py, gx, gy, walk, next_hop, los):
     return (hop // my) + 0.5, (hop % my) + 0.5
 
 
-@inline
+@helper
 def _slide(px, py, nx, ny, mover, walk):
     """Where a unit at (px, py) heading to (nx, ny) ends up: there if its centre stays walkable, else sliding
     along one axis, else staying put."""
@@ -455,7 +464,7 @@ def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, slot_stat
 # 4. Separation.
 
 
-@inline
+@helper
 def _sort_by_x(n, by_x, key, x):
     """Order the slots by (x, slot) into ``by_x``, with ``key[a] = x[by_x[a]]``.
 
@@ -476,7 +485,7 @@ def _sort_by_x(n, by_x, key, x):
         by_x[c + 1] = s
 
 
-@inline
+@helper
 def _push_apart(i, j, dx, dy, d2, rr, push_x, push_y, order, slot_stats):
     """Add the pushes that part overlapping units i and j (j - i = (dx, dy), d2 = dx^2 + dy^2 < rr^2) to
     ``push_x, push_y``; return the depth of the overlap (0 when neither may move).
@@ -505,7 +514,7 @@ def _push_apart(i, j, dx, dy, d2, rr, push_x, push_y, order, slot_stats):
     return overlap
 
 
-@inline
+@helper
 def _bump(mover, other, order, order_x, order_y, target, x, y):
     """Whether ``mover``, walking on a move or attack-move with no target, has bumped into ``other``, a unit of its
     side that was idle when the pass began, within 3 of its point: SC2's group arrival, its order is then complete."""
@@ -585,7 +594,7 @@ def _separation(n, side, alive, x, y, push_x, push_y, order, order_x, order_y, t
 # 5. Attacks, heals, bursts.
 
 
-@inline
+@helper
 def _damage(j, amount, source, health, shield, shield_wait, attacker, slot_stats):
     """One hit of ``amount`` on unit j: shields absorb first, then armour applies, at least 0.5 on health."""
     if shield[j] > 0.0:
@@ -601,7 +610,7 @@ def _damage(j, amount, source, health, shield, shield_wait, attacker, slot_stats
     attacker[j] = source
 
 
-@inline
+@helper
 def _hit_amount(slot_stats, i, j):
     """Damage per hit of unit i's weapon on unit j, with the bonus against j's attributes."""
     amount = slot_stats[i, _DAMAGE]
@@ -610,7 +619,7 @@ def _hit_amount(slot_stats, i, j):
     return amount
 
 
-@inline
+@helper
 def _line_splash(n, i, j, side, alive0, x, y, health, shield, shield_wait, attacker, slot_stats):
     """Colossus: each hit lands on every enemy ground unit touching a line across the target."""
     ux, uy = x[j] - x[i], y[j] - y[i]
@@ -635,7 +644,7 @@ def _line_splash(n, i, j, side, alive0, x, y, health, shield, shield_wait, attac
                 _damage(k, amount, i, health, shield, shield_wait, attacker, slot_stats)
 
 
-@inline
+@helper
 def _burst(n, i, side, alive0, x, y, health, shield, shield_wait, attacker, burst, slot_stats):
     """Baneling: damage every enemy ground unit whose edge is within the splash radius, then die."""
     radius = slot_stats[i, _SPLASH_R]
@@ -649,7 +658,7 @@ def _burst(n, i, side, alive0, x, y, health, shield, shield_wait, attacker, burs
     burst[i] = True
 
 
-@inline
+@helper
 def _heal(i, j, health, energy, fired_at, slot_stats):
     missing = slot_stats[j, _HEALTH] - health[j]
     if missing <= 0.0 or (int(slot_stats[j, _ATTR]) & _BIO) == 0 or slot_stats[j, _IS_AIR] > 0:
@@ -663,7 +672,7 @@ def _heal(i, j, health, energy, fired_at, slot_stats):
     fired_at[i] = j
 
 
-@inline
+@helper
 def _uniform(rng):
     """Next number in [0, 1) of a battle's xorshift64* stream (``rng`` is its one-element state)."""
     z = rng[0]
@@ -674,7 +683,7 @@ def _uniform(rng):
     return float((z * np.uint64(2685821657736338717)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@inline
+@helper
 def _target_in_reach(i, alive0, x, y, target, slot_stats):
     """Unit i's target if both were alive when the loop began and it is within i's weapon range, else NO_UNIT."""
     j = target[i]
@@ -788,35 +797,32 @@ def _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, nex
     loop[0] += n_loops
 
 
-def _battle_range_kernel(n_units: int) -> Any:
-    """``step_battles`` for battles of ``n_units`` units (0: any number, read from the state's shape)."""
+@njit(cache=True, error_model="numpy", _nrt=False)
+def step_battles(start, stop, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
+                 n_loops, active, jitter, by_x, key, engaged, x0, y0, units):
+    """Apply the commands, then run ``n_loops`` game loops, for battles ``start`` to ``stop - 1`` with ``active[b]``,
+    on the calling thread.
 
-    @njit(cache=True, error_model="numpy", _nrt=False)
-    def step_battles(start, stop, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                     n_loops, active, jitter, by_x, key, engaged, x0, y0):
-        """Apply the commands, then run ``n_loops`` game loops, for battles ``start`` to ``stop - 1`` with
-        ``active[b]``, on the calling thread."""
-        n = st.alive.shape[1] if n_units == 0 else n_units
-        for b in range(start, stop):
-            if active[b]:
-                _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                             n_loops, jitter, by_x, key, engaged, x0, y0)
-
-    return step_battles
-
-
-step_battles = _battle_range_kernel(0)
+    ``units`` selects the overload: ``GENERIC`` (an empty tuple) reads the number of units from the state's shape;
+    ``units_marker(n)`` (a tuple of n zeros) compiles an overload for exactly n units (``step_kernels_for``).
+    """
+    n = st.alive.shape[1] if len(units) == 0 else len(units)
+    for b in range(start, stop):
+        if active[b]:
+            _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
+                         n_loops, jitter, by_x, key, engaged, x0, y0)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", _nrt=False)
 def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, active,
-               jitter, by_x, key, engaged, x0, y0, workers, next_battle):
-    """``step_battles`` over the whole batch on numba's threads.
+               jitter, by_x, key, engaged, x0, y0, workers, next_battle, units):
+    """``step_battles`` over the whole batch on numba's threads (``units``: the overload, as there).
 
     One prange iteration per worker thread (``workers``: numba's thread count); each takes chunks of battles from
     ``next_battle`` (an int64 array of one element, the shared counter) until all are taken (see ``scheduling``).
     Each chunk is one call of the compiled ``step_battles``: inlining the battle here instead made numba's parfor
-    passes take 87 s to compile this kernel on 2 cores, against 4 s.
+    passes take 87 s to compile this kernel on 2 cores, against 4 s (and the unit-count overloads, which inlined it
+    until they took the count as a tuple type, stepped no faster for it).
     """
     n_battles = st.alive.shape[0]
     chunk = max(1, n_battles // (workers * CHUNKS_PER_THREAD))
@@ -827,44 +833,29 @@ def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, l
             if start >= n_battles:
                 break
             step_battles(start, min(start + chunk, n_battles), st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk,
-                         next_hop, los, open_field, n_loops, active, jitter, by_x, key, engaged, x0, y0)
+                         next_hop, los, open_field, n_loops, active, jitter, by_x, key, engaged, x0, y0, units)
 
 
-def _inlined_batch_kernel(n_units: int) -> Any:
-    """``step_batch`` for battles of exactly ``n_units`` units, with the battle inlined into the parallel loop.
-
-    It cannot call ``step_kernels_for``'s ``step_battles`` as the generic ``step_batch`` calls its own: a compiled
-    function held in a closure hashes differently in every process, so numba's cache would never find the kernel.
-    """
-
-    @njit(cache=True, parallel=True, error_model="numpy", _nrt=False)
-    def step_batch_for_units(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                             active, jitter, by_x, key, engaged, x0, y0, workers, next_battle):
-        n_battles = st.alive.shape[0]
-        chunk = max(1, n_battles // (workers * CHUNKS_PER_THREAD))
-        next_battle[0] = 0
-        for _ in prange(workers):
-            while True:
-                start = fetch_add(next_battle, chunk)
-                if start >= n_battles:
-                    break
-                for b in range(start, min(start + chunk, n_battles)):
-                    if active[b]:
-                        _step_battle(n_units, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los,
-                                     open_field, n_loops, jitter, by_x, key, engaged, x0, y0)
-
-    return step_batch_for_units
+GENERIC = ()  # ``units`` of the overloads that read the unit count from the state's shape
 
 
-@functools.cache
-def step_kernels_for(n_units: int) -> tuple[Any, Any]:
-    """``(step_batch, step_battles)`` compiled for battles of exactly ``n_units`` units.
+def units_marker(n_units: int) -> tuple:
+    """``units`` of the overloads compiled for exactly ``n_units`` units per battle: a tuple of that many int8 zeros,
+    whose type (``UniTuple(int8, n)``) carries the count. A type, not a closure: one dispatcher holds every count's
+    overload, numba's cache keeps them under one index, and ``step_batch`` calls ``step_battles``'s for its own."""
+    if isinstance(n_units, bool) or not isinstance(n_units, int) or n_units < 1:
+        raise ValueError(f"n_units must be a positive int (units per battle), got {n_units!r}")
+    return (np.int8(0),) * n_units
 
-    With the count fixed at compile time LLVM unrolls the loops over units and drops their bounds: 3m at 4096
-    battles steps about 10% faster. The price is a compilation per unit count (about 90 s on 2 cores, once: numba
+
+def step_kernels_for(n_units: int) -> tuple[Any, Any, tuple]:
+    """``(step_batch, step_battles, units)``: the drivers and the ``units`` argument that selects their overloads
+    compiled for battles of exactly ``n_units`` units.
+
+    With the count fixed at compile time LLVM can unroll the phases' loops over units and drop their bounds (3m at
+    4096 battles stepped about 10% faster when every helper was inlined too; with the helpers called, the gain was
+    within the noise of the measurement). The price is a compilation per unit count (about 20 s of CPU, once: numba
     caches it on disk like every kernel), so the engine takes these for big batches only (``BattleEngine``'s
     ``specialize``).
     """
-    if isinstance(n_units, bool) or not isinstance(n_units, int) or n_units < 1:
-        raise ValueError(f"n_units must be a positive int (units per battle), got {n_units!r}")
-    return _inlined_batch_kernel(n_units), _battle_range_kernel(n_units)
+    return step_batch, step_battles, units_marker(n_units)
