@@ -106,3 +106,40 @@ def test_section_lists():
     assert _numbers("3-§6") == [3, 4, 5, 6]
     assert _numbers("7, §9") == [7, 9]
     assert _numbers("3/§4") == [3, 4]
+
+
+MANUAL = [ROOT / "README.md", ROOT / "benchmarks" / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+TRACKER = re.compile(r"\bissues?\s+[0-9]|\bissue\s+#?[0-9]+'s|\bthe issue\b", re.I)  # "issue 12", "Issue 14", ...
+OTHER_PROJECT_ISSUE = re.compile(r"[\w.-]+/[\w.-]+ issue #\d+|smac issue #\d+")  # a cited issue of another project
+MACHINE_PATH = re.compile(r"(?<![\w.~-])/(?:work|tmp|root)/")
+
+
+def manual_problems(text: str, where: str = "") -> list[str]:
+    """Passages of a manual page that only make sense on the machine or in the tracker it was written with: a
+    reference to one of this project's issues ("issue 12's engine") or an absolute machine path."""
+    problems = []
+    for number, line in enumerate(text.splitlines(), 1):
+        line_free = OTHER_PROJECT_ISSUE.sub("", line)
+        if TRACKER.search(line_free):
+            problems.append(f"{where}:{number}: names an issue instead of the thing itself: {line.strip()[:100]}")
+        if MACHINE_PATH.search(line):
+            problems.append(f"{where}:{number}: an absolute machine path: {line.strip()[:100]}")
+    return problems
+
+
+def test_the_manual_names_things_not_issues_or_machine_paths():
+    # README.md, docs/ and benchmarks/README.md are a manual for a reader who has only the repository: history goes
+    # into CHANGELOG.md, and commands use paths relative to the repository.
+    problems = []
+    for path in MANUAL:
+        problems += manual_problems(path.read_text(encoding="utf-8"), str(path.relative_to(ROOT)))
+    assert not problems, "\n".join(problems)
+
+
+@pytest.mark.parametrize("text, bad", [
+    ("on issue 12's engine", 1), ("Issue 14: one pass down", 1), ("the issue's bar", 1), ("see /work/main/x", 1),
+    ("python3 -m venv /tmp/venv", 1), ("chaovven/SMIX issue #5", 0), ("(smac issue #91)", 0), ("../smax-venv", 0),
+    ("an issue with the engine", 0), ("`runs/3m/model.zip`", 0),
+])
+def test_the_manual_check_catches_issue_numbers_and_machine_paths(text, bad):
+    assert len(manual_problems(text)) == bad, manual_problems(text)
