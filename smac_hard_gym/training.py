@@ -44,6 +44,7 @@ __all__ = ["TrainConfig", "EvalResult", "train", "evaluate", "evaluate_scripts",
 CURVE_COLUMNS = ("timesteps", "win_rate", "mean_return", "mean_length", "episodes", "train_win_rate",
                  "train_episodes", "wall_s", "env_s", "env_fraction")
 MIXTURE_ROW = "mixture"
+POLICIES = ("joint", "shared")  # train --policy
 TEST_SEED_BASE = 1_000_000_000  # test battle b is seeded TEST_SEED_BASE + b; training battles stay below it
 
 
@@ -92,6 +93,7 @@ class TrainConfig:
     eval_episodes: int = 32
     eval_envs: int = 16
     obs_mode: str = "joint"
+    policy: str = "joint"  # "joint": the joint MLP (sb3_policy); "shared": the unit-shared MAPPO policy (sb3_shared)
     n_steps: int = 32  # per env and rollout: num_envs * n_steps samples per update
     batch_size: int = 512
     n_epochs: int = 10
@@ -126,6 +128,10 @@ class TrainConfig:
             raise ValueError(f"eval_every must be >= 0 (0: a tenth of the run), got {self.eval_every!r}")
         if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
             raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
+        if self.policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        if self.policy == "shared" and self.obs_mode == "dict":
+            raise ValueError("the shared policy reads the joint view: use obs_mode 'joint+state' (or 'joint')")
         if self.league_every < 0:
             raise ValueError(f"league_every must be >= 0 (0: a fifth of the run), got {self.league_every!r}")
         from smac_hard_gym.opponents.league import WEIGHTINGS
@@ -169,11 +175,19 @@ class TrainConfig:
         return {"map_name": self.map_name, "obs_mode": self.obs_mode}
 
     def ppo_kwargs(self) -> dict[str, Any]:
-        """MaskablePPO's keyword arguments for this run's PPO settings (policy, env and buffer apart)."""
+        """MaskablePPO's keyword arguments for this run's PPO settings (policy, env and buffer apart). The shared
+        policy's actor is MAPPO's 64x64; ``net_arch`` sizes its critic, and its layout comes from the map."""
+        net_arch: Any = [int(n) for n in self.net_arch]
+        policy_kwargs: dict[str, Any] = {"net_arch": net_arch}
+        if self.policy == "shared":
+            from smac_hard_gym.wrappers.sb3_shared import shared_policy_kwargs
+
+            policy_kwargs = {"net_arch": {"pi": [64, 64], "vf": net_arch},
+                             **shared_policy_kwargs(self.map_name, self.obs_mode)}
         return {"n_steps": self.n_steps, "batch_size": self.batch_size, "n_epochs": self.n_epochs,
                 "learning_rate": self.learning_rate, "gamma": self.gamma, "gae_lambda": self.gae_lambda,
                 "clip_range": self.clip_range, "ent_coef": self.ent_coef, "seed": self.seed, "device": "cpu",
-                "verbose": 0, "policy_kwargs": {"net_arch": [int(n) for n in self.net_arch]}}
+                "verbose": 0, "policy_kwargs": policy_kwargs}
 
 
 @dataclass
@@ -490,6 +504,7 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     from smac_hard_gym.wrappers.sb3 import SB3VecEnv
     from smac_hard_gym.wrappers.sb3_buffers import MaskableJointDictRolloutBuffer, MaskableJointRolloutBuffer
     from smac_hard_gym.wrappers.sb3_policy import MaskableJointMultiInputPolicy, MaskableJointPolicy
+    from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy, SharedUnitRolloutBuffer
 
     torch.set_num_threads(config.torch_threads)
     numba.set_num_threads(min(config.env_threads, numba.config.NUMBA_NUM_THREADS))
@@ -527,6 +542,8 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     dict_obs = config.obs_mode == "dict"
     policy = MaskableJointMultiInputPolicy if dict_obs else MaskableJointPolicy
     buffer = MaskableJointDictRolloutBuffer if dict_obs else MaskableJointRolloutBuffer
+    if config.policy == "shared":  # one actor for every unit, state critic, value normalisation (sb3_shared.py)
+        policy, buffer = SharedUnitPolicy, SharedUnitRolloutBuffer
     model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, tensorboard_log=config.tensorboard or None,
                         **config.ppo_kwargs())
     if not config.tensorboard:
@@ -683,7 +700,7 @@ def load_run_config(model_path: str | Path) -> TrainConfig | None:
         raise ValueError(f"{path}: malformed run config (a JSON object of TrainConfig fields expected, got "
                          f"{type(data).__name__})")
     known = {f.name for f in fields(TrainConfig)}
-    for key in ("map_name", "opponent", "obs_mode", "out", "tensorboard", "league_weighting"):
+    for key in ("map_name", "opponent", "obs_mode", "policy", "out", "tensorboard", "league_weighting"):
         if key in data and not isinstance(data[key], str):
             raise ValueError(f"{path}: malformed run config ({key} is {data[key]!r}, expected a string)")
     try:

@@ -96,6 +96,24 @@ def test_train_and_eval_commands_end_to_end(tmp_path, capsys, monkeypatch):
     assert "all (mixture)" in capsys.readouterr().out
 
 
+def test_train_with_the_shared_policy_and_eval_it(tmp_path, capsys):
+    from smac_hard_gym.training import TrainConfig, load_model
+    from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy
+
+    out = tmp_path / "shared"
+    assert main(["train", *_SMALL_RUN, "--policy", "shared", "--out", str(out)]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["policy"] == "shared" and config["obs_mode"] == "joint+state"
+    model = load_model(out / "model.zip")
+    assert type(model.policy) is SharedUnitPolicy and int(model.policy.value_normaliser.updates) > 0
+    assert main(["eval", "--model", str(out / "model.zip"), "--opponent", "smac", "--episodes", "2",
+                 "--num-envs", "2"]) == 0
+    with pytest.raises(ValueError, match="shared policy reads the joint view"):
+        TrainConfig(policy="shared", obs_mode="dict", out="x")
+    with pytest.raises(ValueError, match="policy must be one of"):
+        TrainConfig(policy="mlp", out="x")
+
+
 def test_cli_rejects_bad_input():
     with pytest.raises(SystemExit, match="unknown map"):
         main(["train", "--map", "4m"])

@@ -1,8 +1,9 @@
 """``bench train``: MaskablePPO's training throughput (rollouts and updates) with sb3-contrib's stock policy and buffer
-against the joint ones ``smac-hard-gym train`` uses, at ``train``'s settings, interleaved round by round.
+against the joint ones ``smac-hard-gym train`` uses, and ``train --policy shared``'s unit-shared policy
+(wrappers/sb3_shared.py, on the ``joint+state`` view), at ``train``'s settings, interleaved round by round.
 
-Both variants start from the same seed and learn the same steps, so their weights must come out equal; the result
-says whether they did, next to the steps/s.
+The stock and joint variants start from the same seed and learn the same steps, so their weights must come out
+equal; the result says whether they did, next to the steps/s (the shared policy is another network: not applicable).
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ import numpy as np
 
 from smac_hard_gym.bench.timing import Measurement
 
-VARIANTS = ("stock", "joint")  # sb3-contrib's MlpPolicy and buffer; MaskableJointPolicy and MaskableJointRolloutBuffer
+# stock: sb3-contrib's MlpPolicy and buffer; joint: MaskableJointPolicy and MaskableJointRolloutBuffer; shared:
+# SharedUnitPolicy and SharedUnitRolloutBuffer
+VARIANTS = ("stock", "joint", "shared")
 
 
 def _model(variant: str, map_name: str, num_envs: int, seed: int) -> Any:
@@ -27,12 +30,16 @@ def _model(variant: str, map_name: str, num_envs: int, seed: int) -> Any:
     from smac_hard_gym.wrappers.sb3 import SB3VecEnv
     from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
     from smac_hard_gym.wrappers.sb3_policy import MaskableJointPolicy
+    from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy, SharedUnitRolloutBuffer
 
-    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(map_name, num_envs, autoreset_mode="SameStep", opponent="smac")))
-    joint = variant == "joint"
-    model = MaskablePPO(MaskableJointPolicy if joint else "MlpPolicy", venv,
-                        rollout_buffer_class=MaskableJointRolloutBuffer if joint else None,
-                        **TrainConfig(map_name=map_name, seed=seed).ppo_kwargs())
+    shared = variant == "shared"
+    obs_mode = "joint+state" if shared else "joint"
+    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(map_name, num_envs, autoreset_mode="SameStep", opponent="smac",
+                                                obs_mode=obs_mode)))
+    policy, buffer = {"stock": ("MlpPolicy", None), "joint": (MaskableJointPolicy, MaskableJointRolloutBuffer),
+                      "shared": (SharedUnitPolicy, SharedUnitRolloutBuffer)}[variant]
+    config = TrainConfig(map_name=map_name, seed=seed, obs_mode=obs_mode, policy="shared" if shared else "joint")
+    model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, **config.ppo_kwargs())
     model.set_logger(Logger(folder=None, output_formats=[]))
     return model
 
@@ -90,6 +97,7 @@ def bench_training(map_name: str, timesteps: int = 8192, rounds: int = 3, num_en
             model.get_env().close()
     speed = {v: float(np.median(r)) for v, r in runs.items()}
     return [Measurement("train", map_name, num_envs, speed[v], runs[v], mode=v,
-                        extra={"timesteps_per_round": timesteps, "same_weights": same,
-                               "speedup_vs_stock": speed[v] / speed["stock"]})
+                        extra={"timesteps_per_round": timesteps, "same_weights": same if v != "shared" else None,
+                               "speedup_vs_stock": speed[v] / speed["stock"],
+                               "speedup_vs_joint": speed[v] / speed["joint"]})
             for v in VARIANTS]

@@ -263,12 +263,14 @@ def _run_train(args: argparse.Namespace) -> int:
     info = machine_info()
     print(f"machine: {info['cpu']}, {info['cores']} cores; one torch and one engine thread, 64 battles, "
           f"train's PPO settings; {args.rounds} rounds of {args.timesteps:,} steps per variant, interleaved")
-    print(f"{'map':<14}{'variant':>8}{'env-steps/s':>13}{'min-max':>16}{'vs stock':>10}{'same weights':>14}")
+    print(f"{'map':<14}{'variant':>8}{'env-steps/s':>13}{'min-max':>16}{'vs stock':>10}{'vs joint':>10}"
+          f"{'same weights':>14}")
     results = []
     for name in args.map:
         for r in bench_training(name, timesteps=args.timesteps, rounds=args.rounds):
             results.append(r)
             low, high = r.spread
             print(f"{name:<14}{r.mode:>8}{r.steps_per_second:>13,.0f}{f'{low:,.0f}-{high:,.0f}':>16}"
-                  f"{r.extra['speedup_vs_stock']:>9.2f}x{str(r.extra['same_weights']):>14}")
+                  f"{r.extra['speedup_vs_stock']:>9.2f}x{r.extra['speedup_vs_joint']:>9.2f}x"
+                  f"{'n/a' if r.extra['same_weights'] is None else str(r.extra['same_weights']):>14}")
     return _save(args.json, "train", results)

@@ -29,7 +29,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-every", type=int, default=0,
                         help="env steps between evaluations (default: a tenth of --timesteps)")
     parser.add_argument("--eval-episodes", type=int, default=32, help="episodes per evaluation (default 32)")
-    parser.add_argument("--obs-mode", default="joint", choices=("joint", "joint+state", "dict"))
+    parser.add_argument("--obs-mode", default=None, choices=("joint", "joint+state", "dict"),
+                        help="observation (default joint; joint+state with --policy shared)")
+    parser.add_argument("--policy", default="joint", choices=("joint", "shared"),
+                        help="joint: one MLP over all units (default); shared: one 64x64 actor shared by the units "
+                             "(with unit ids and last actions), a critic on the global state sized by --net-arch, "
+                             "value normalisation (MAPPO; wrappers/sb3_shared.py)")
     parser.add_argument("--n-steps", type=int, default=32,
                         help="rollout length per env (default 32: 64 x 32 = 2048 samples per update)")
     parser.add_argument("--batch-size", type=int, default=512)
@@ -72,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
         config = TrainConfig(
             map_name=args.map, opponent=args.opponent, timesteps=args.timesteps, num_envs=args.num_envs,
             seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
-            obs_mode=args.obs_mode, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.epochs,
+            obs_mode=args.obs_mode or ("joint+state" if args.policy == "shared" else "joint"),
+            policy=args.policy, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.epochs,
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, net_arch=net_arch,
             torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
             tensorboard=args.tensorboard, league=args.league, league_every=args.league_every,

@@ -1,0 +1,217 @@
+"""Joint MLP against the unit-shared MAPPO-style policy (wrappers/sb3_shared.py) and its ablations, for a long run.
+
+Trains MaskablePPO with each variant on the given maps and seeds for the given steps (at ``smac-hard-gym train``'s
+PPO settings: 64 battles, 32 steps per rollout, minibatches of 512, 10 epochs, lr 5e-4, ent 0.01), then plays a
+deterministic test evaluation against the opponent "smac" (SC2's built-in AI script) on the test battles
+``smac-hard-gym eval`` plays, and writes ``study.json`` (one row per run) and ``study.md`` (per map and variant: mean
+final test win rate over seeds, its spread, and training steps/s) to ``--out``.
+
+Variants (``--variants``, comma-separated):
+
+- ``joint``: the joint MLP ``train`` uses today (MaskableJointPolicy, obs_mode "joint", 128x128 actor and critic);
+- ``shared``: SharedUnitPolicy, obs_mode "joint+state": shared 64x64 actor on [obs, unit id, last action],
+  128x128 critic on the global state, running value normalisation;
+- ``shared-no-id``: without the one-hot unit id;
+- ``shared-no-last-action``: without the last-action input;
+- ``shared-no-state``: decentralised critic (shared per-unit critic on [obs, id], averaged over living units);
+- ``shared-no-vnorm``: without value normalisation;
+- ``shared-popart``: PopArt (value normalisation that rescales the value head to keep its outputs).
+
+``--speed``: no evaluation; instead ``--rounds`` interleaved rounds of ``--timesteps`` steps per variant after one
+untimed warm-up rollout (as ``smac-hard-gym bench train``), reporting each round's steps/s and the median. Either
+way the engine's kernels and torch are warmed up first (one untimed rollout per policy kind and obs mode), so the
+first variant does not pay for compilation. Training steps/s counts rollouts and updates together (evaluation
+apart), like ``train``'s and ``bench train``'s.
+
+    nice -n 10 python benchmarks/shared_policy_study.py --maps 3m --seeds 0 --timesteps 20000
+    nice -n 10 python benchmarks/shared_policy_study.py --maps 27m_vs_30m --speed --timesteps 4096 --rounds 2 \\
+        --variants joint,shared
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+VARIANTS: dict[str, dict[str, Any]] = {
+    "joint": {"policy": "joint", "obs_mode": "joint", "kwargs": {}},
+    "shared": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {}},
+    "shared-no-id": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"unit_ids": False}},
+    "shared-no-last-action": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"last_action": False}},
+    "shared-no-state": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"critic": "unit"}},
+    "shared-no-vnorm": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"value_norm": "none"}},
+    "shared-popart": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"value_norm": "popart"}},
+}
+DEFAULT_VARIANTS = "joint,shared,shared-no-id,shared-no-state,shared-no-vnorm"
+
+
+def build_model(variant: str, map_name: str, seed: int, num_envs: int, opponent: str) -> Any:
+    """MaskablePPO for ``variant`` at ``train``'s settings, on a fresh native vector env."""
+    from sb3_contrib import MaskablePPO
+    from stable_baselines3.common.logger import Logger
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from smac_hard_gym.envs.vector import NativeVectorEnv
+    from smac_hard_gym.training import TrainConfig
+    from smac_hard_gym.wrappers.sb3 import SB3VecEnv
+    from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
+    from smac_hard_gym.wrappers.sb3_policy import MaskableJointPolicy
+    from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy, SharedUnitRolloutBuffer, shared_policy_kwargs
+
+    spec = VARIANTS[variant]
+    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(map_name, num_envs, autoreset_mode="SameStep", opponent=opponent,
+                                                obs_mode=spec["obs_mode"])))
+    ppo = TrainConfig(map_name=map_name, seed=seed, num_envs=num_envs, obs_mode=spec["obs_mode"]).ppo_kwargs()
+    if spec["policy"] == "joint":
+        policy, buffer = MaskableJointPolicy, MaskableJointRolloutBuffer
+    else:
+        policy, buffer = SharedUnitPolicy, SharedUnitRolloutBuffer
+        ppo["policy_kwargs"] = {**shared_policy_kwargs(venv), **spec["kwargs"]}
+    model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, **ppo)
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
+
+
+def count_parameters(model: Any) -> int:
+    return int(sum(p.numel() for p in model.policy.parameters()))
+
+
+def test_win_rate(model: Any, variant: str, map_name: str, episodes: int, eval_envs: int) -> dict[str, Any]:
+    """Deterministic masked win rate against "smac" on the test battles (``smac-hard-gym eval``'s defaults)."""
+    from smac_hard_gym.envs.vector import NativeVectorEnv
+    from smac_hard_gym.training import TEST_SEED_BASE, evaluate, win_rate_spread
+
+    env = NativeVectorEnv(map_name, min(eval_envs, episodes), autoreset_mode="SameStep", opponent="smac",
+                          obs_mode=VARIANTS[variant]["obs_mode"])
+    try:
+        result = evaluate(model, env, episodes, seed=TEST_SEED_BASE)
+    finally:
+        env.close()
+    return {"win_rate": result.win_rate, "wins": result.wins, "episodes": result.episodes,
+            "mean_return": result.mean_return, **{k: v for k, v in win_rate_spread(result.wins, result.episodes).items()
+                                                  if k != "episodes"}}
+
+
+def warm_up(map_name: str, variants: list[str], num_envs: int, opponent: str) -> None:
+    """One untimed rollout and update per policy kind and obs mode: the engine's and torch's first calls (kernel
+    compilation, allocations) stay out of every variant's steps/s."""
+    kinds = {(VARIANTS[v]["policy"], VARIANTS[v]["obs_mode"]): v for v in variants}
+    for variant in kinds.values():
+        model = build_model(variant, map_name, 0, num_envs, opponent)
+        model.learn(model.n_steps * num_envs)
+        model.get_env().close()
+
+
+def study(args: argparse.Namespace, variants: list[str]) -> list[dict[str, Any]]:
+    rows = []
+    for map_name in args.maps.split(","):
+        warm_up(map_name, variants, args.num_envs, args.opponent)
+        for seed in [int(s) for s in args.seeds.split(",")]:
+            for variant in variants:
+                model = build_model(variant, map_name, seed, args.num_envs, args.opponent)
+                start = time.perf_counter()
+                model.learn(args.timesteps)
+                wall = time.perf_counter() - start
+                model.get_env().close()
+                row = {"map": map_name, "seed": seed, "variant": variant, "timesteps": int(model.num_timesteps),
+                       "train_s": wall, "steps_per_s": model.num_timesteps / wall,
+                       "parameters": count_parameters(model), "train_opponent": args.opponent,
+                       "test": test_win_rate(model, variant, map_name, args.eval_episodes, args.eval_envs)}
+                rows.append(row)
+                print(f"{map_name} seed {seed} {variant}: test win rate {row['test']['win_rate']:.3f} "
+                      f"({row['test']['wins']}/{row['test']['episodes']}), {row['steps_per_s']:.0f} steps/s",
+                      flush=True)
+    return rows
+
+
+def speed(args: argparse.Namespace, variants: list[str]) -> list[dict[str, Any]]:
+    rows = []
+    for map_name in args.maps.split(","):
+        warm_up(map_name, variants, args.num_envs, args.opponent)
+        models = {v: build_model(v, map_name, 0, args.num_envs, args.opponent) for v in variants}
+        for model in models.values():  # warm-up: compilation and first allocations, untimed
+            model.learn(model.n_steps * args.num_envs)
+        runs: dict[str, list[float]] = {v: [] for v in variants}
+        for _ in range(args.rounds):  # interleaved: a busy spell on a shared machine hits every variant
+            for variant, model in models.items():
+                before = model.num_timesteps
+                start = time.perf_counter()
+                model.learn(args.timesteps, reset_num_timesteps=False)
+                runs[variant].append((model.num_timesteps - before) / (time.perf_counter() - start))
+        base = statistics.median(runs[variants[0]])
+        for variant, model in models.items():
+            median = statistics.median(runs[variant])
+            rows.append({"map": map_name, "variant": variant, "steps_per_s": median, "rounds": runs[variant],
+                         "parameters": count_parameters(model), f"speedup_vs_{variants[0]}": median / base})
+            print(f"{map_name} {variant}: {median:.0f} steps/s (rounds {[round(r) for r in runs[variant]]}), "
+                  f"{count_parameters(model)} parameters, {median / base:.2f}x {variants[0]}", flush=True)
+            model.get_env().close()
+    return rows
+
+
+def markdown(rows: list[dict[str, Any]], speed_only: bool) -> str:
+    if speed_only:
+        lines = ["| map | variant | training steps/s (median) | rounds | parameters | speedup |",
+                 "|---|---|---|---|---|---|"]
+        for r in rows:
+            key = next(k for k in r if k.startswith("speedup_vs_"))
+            lines.append(f"| {r['map']} | {r['variant']} | {r['steps_per_s']:.0f} | "
+                         f"{', '.join(f'{x:.0f}' for x in r['rounds'])} | {r['parameters']:,} | {r[key]:.2f}x |")
+        return "\n".join(lines) + "\n"
+    lines = ["| map | variant | seeds | final test win rate vs smac (mean) | per seed | training steps/s (mean) | "
+             "parameters |", "|---|---|---|---|---|---|---|"]
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["map"], r["variant"]), []).append(r)
+    for (map_name, variant), group in groups.items():
+        rates = [g["test"]["win_rate"] for g in group]
+        lines.append(f"| {map_name} | {variant} | {len(group)} | {statistics.mean(rates):.3f} | "
+                     f"{', '.join(f'{x:.2f}' for x in rates)} | "
+                     f"{statistics.mean(g['steps_per_s'] for g in group):.0f} | {group[0]['parameters']:,} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--maps", default="3m")
+    parser.add_argument("--seeds", default="0")
+    parser.add_argument("--timesteps", type=int, default=20_000)
+    parser.add_argument("--variants", default=DEFAULT_VARIANTS)
+    parser.add_argument("--opponent", default="smac", help="the training opponent (tests are always vs smac)")
+    parser.add_argument("--num-envs", type=int, default=64)
+    parser.add_argument("--eval-episodes", type=int, default=32)
+    parser.add_argument("--eval-envs", type=int, default=16)
+    parser.add_argument("--speed", action="store_true", help="interleaved steps/s only, no evaluation")
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--out", default="runs/shared_policy_study")
+    args = parser.parse_args(argv)
+    variants = args.variants.split(",")
+    unknown = sorted(set(variants) - set(VARIANTS))
+    if unknown:
+        parser.error(f"unknown variants {unknown}; known: {sorted(VARIANTS)}")
+
+    import numba
+    import torch
+
+    from smac_hard_gym.training import distribution_checks_off
+
+    torch.set_num_threads(1)
+    numba.set_num_threads(1)
+    with distribution_checks_off():
+        rows = speed(args, variants) if args.speed else study(args, variants)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {"args": vars(args), "rows": rows}
+    name = "speed" if args.speed else "study"
+    (out / f"{name}.json").write_text(json.dumps(meta, indent=1) + "\n")
+    table = markdown(rows, args.speed)
+    (out / f"{name}.md").write_text(table)
+    print(table)
+
+
+if __name__ == "__main__":
+    main()
