@@ -13,6 +13,8 @@ Sources (keys used in each row's ``sources``):
 - ``lqp``: Liquipedia LotV pages (Faster speed, converted here).
 - ``smac``: SMAC's own constants (``unit_max_cooldown``, ``unit_max_shield``).
 - ``lotv``: general LotV knowledge that could not be re-retrieved (marked * in the reference table).
+- ``gamedata``: the game's own data files (SC2Mapster/SC2GameData, ``liberty`` AbilData.xml), cited in
+  docs/engine_rules.md.
 
 Every fact comes from ``docs/smac_interface.md`` §8, which collects these sources.
 
@@ -79,6 +81,7 @@ class UnitSpec:
     regen: float = 0.0  # health per Normal second (zerg)
     passive: bool = False  # SMAC *_RL: no auto-acquire while idle, no response when attacked
     smac_max_cooldown: float = 15.0  # smac: normaliser of the state's cooldown/energy column
+    autocast_range: float = 0.0  # a healer's heal auto-cast reach, edge to edge (0: no auto-cast)
     sources: dict[str, str] = field(default_factory=dict, compare=False)
 
 
@@ -110,8 +113,9 @@ _STANDARD: list[UnitSpec] = [
         bonus_damage=0, bonus_attribute=0, cooldown=0, range=4, hits_ground=False, hits_air=False,
         speed=3.5 / FASTER_PER_NORMAL, radius=0.75, sight=11, attributes=ARMORED | MECH, is_air=True,
         weapon=WEAPON_HEAL, energy_start=50, energy_max=200, energy_regen=0.7875 / FASTER_PER_NORMAL,
-        heal_rate=12.6 / FASTER_PER_NORMAL, heal_energy_per_hp=1.0 / 3.0, smac_max_cooldown=200,
+        heal_rate=12.6 / FASTER_PER_NORMAL, heal_energy_per_hp=1.0 / 3.0, smac_max_cooldown=200, autocast_range=6.0,
         sources={"health,armor,sight,radius,energy_start,energy_max": "xml",
+                 "autocast_range": "gamedata MedivacHeal AutoCastRange 6 (targets sorted by life fraction)",
                  "speed": "lqp 3.5 Faster -> 2.5 Normal", "energy_regen": "lqp 0.7875/s Faster",
                  "heal_rate,heal_energy_per_hp,range": "lotv* 12.6 HP/s Faster, 1 energy per 3 HP, range 4",
                  "smac_max_cooldown": "smac (energy normaliser 200)"},
@@ -242,7 +246,10 @@ _PER_SECOND_COLUMNS = ("speed", "energy_regen", "heal_rate", "regen", "shield_re
 
 
 def scan_range(spec: UnitSpec) -> float:
-    """Automatic-acquisition range, edge to edge: max(5, weapon range + 0.5) (docs/smac_interface.md §9)."""
+    """Automatic-acquisition range, edge to edge: max(5, weapon range + 0.5) (docs/smac_interface.md §9); a healer's
+    is its heal auto-cast range (the medivac's 6, docs/engine_rules.md)."""
+    if spec.weapon == WEAPON_HEAL:
+        return spec.autocast_range
     return max(5.0, spec.range + 0.5)
 
 

@@ -140,6 +140,32 @@ def test_medivac_heal_rate_and_energy():
     assert st.fired_at[0, 1] == 2  # heal link recorded for rendering
 
 
+def test_medivac_auto_heal_takes_the_lowest_life_fraction_first():
+    # MedivacHeal's auto-cast sorts targets by life fraction, then distance (game data, docs/engine_rules.md): of two
+    # damaged marines in heal range 4, the one at 10/45 is healed before the nearer one at 40/45. Radii 0.75 + 0.375:
+    # edge distances 0.375 and 3.375, so the medivac heals without moving: 8 loops x 0.5625 HP.
+    engine = engine_with(["Marine_RL"], ["Medivac", "Marine", "Marine"],
+                         {0: (30.0, 16.0), 1: (10.0, 16.0), 2: (11.5, 16.0), 3: (14.5, 16.0)})
+    engine.place(0, 2, health=40.0)
+    engine.place(0, 3, health=10.0)
+    engine.step(n_loops=8)
+    st = engine.state
+    assert st.health[0, 2] == pytest.approx(40.0)
+    assert st.health[0, 3] == pytest.approx(14.5)
+    assert (st.x[0, 1], st.y[0, 1]) == pytest.approx((10.0, 16.0))
+
+
+@pytest.mark.parametrize(("gap", "healed"), [(5.5, True), (6.5, False)])
+def test_medivac_auto_heal_reaches_six(gap, healed):
+    # AutoCastRange 6, edge to edge: a damaged marine 5.5 away is taken (the medivac flies into heal range 4 and
+    # heals); one 6.5 away is not.
+    engine = engine_with(["Marine_RL"], ["Medivac", "Marine"],
+                         {0: (30.0, 4.0), 1: (10.0, 16.0), 2: (10.0 + 1.125 + gap, 16.0)})
+    engine.place(0, 2, health=20.0)
+    engine.step(n_loops=48)
+    assert bool(engine.state.health[0, 2] > 20.0) is healed
+
+
 def test_medivac_stops_when_out_of_energy():
     engine = engine_with(["Zergling_RL"], ["Medivac", "Marine"], {0: (2.0, 2.0), 1: (16.0, 16.0), 2: (17.0, 16.0)})
     engine.place(0, 2, health=10.0)

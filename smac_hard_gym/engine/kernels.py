@@ -203,21 +203,26 @@ def _heal_wanted(alive, health, slot_stats, j):
 
 @helper
 def _acquire_heal(n, i, side, alive, x, y, health, target, slot_stats):
-    """Non-passive medivacs heal the nearest damaged biological ally within scan range."""
+    """Non-passive medivacs keep healing their target while it needs it and stays near; otherwise they take the
+    damaged biological ally with the lowest life fraction within their auto-cast range (the nearest among equals),
+    as MedivacHeal's TargetSorts (TSLifeFraction, TSDistance) order them (docs/engine_rules.md)."""
     scan = slot_stats[i, _SCAN]
     cur = target[i]
     if cur >= 0 and _heal_wanted(alive, health, slot_stats, cur) and _within(
             x[i], y[i], x[cur], y[cur], scan + _LEASH + slot_stats[i, _RADIUS] + slot_stats[cur, _RADIUS]):
         return
     best = NO_UNIT
+    best_f = _INF
     best_d = _INF
     for j in range(n):
         if j == i or side[j] != side[i] or not _heal_wanted(alive, health, slot_stats, j):
             continue
         radii = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
         if _within(x[i], y[i], x[j], y[j], scan + radii):
+            f = health[j] / slot_stats[j, _HEALTH]
             d = _edge_distance(x[i], y[i], x[j], y[j], radii)
-            if d < best_d:
+            if f < best_f or (f == best_f and d < best_d):
+                best_f = f
                 best_d = d
                 best = j
     target[i] = best
