@@ -203,6 +203,15 @@ def test_a_good_loop_settles_and_its_scripts_are_usable(tmp_path, monkeypatch, c
 
     result = run_duel("3m", red="nearest", blue=opponent, blue_probs=probs, episodes=6, seed=1)
     assert "nearest vs lab_blue" in result.by_script
+    assert main(["duel", "--map", "3m", "--red", f"{out / 'red.py'}:LabScript",
+                 "--blue", f"{out / 'blue.py'}:LabScript", "--episodes", "4"]) == 0
+    # train takes the kept script as its opponent (a few updates: the check is that it plays, not what is learned)
+    pytest.importorskip("sb3_contrib", reason="training needs the [train] extra")
+    run = tmp_path / "run"
+    assert main(["train", "--map", "3m", "--opponent", f"{out / 'blue.py'}:LabScript", "--timesteps", "512",
+                 "--num-envs", "4", "--n-steps", "64", "--batch-size", "128", "--epochs", "1", "--eval-every", "512",
+                 "--eval-episodes", "2", "--no-progress", "--out", str(run)]) == 0
+    assert json.loads((run / "summary.json").read_text())["timesteps"] >= 512
 
 
 @pytest.mark.skipif(not SUPPORTED, reason="the process sandbox needs a POSIX system")
