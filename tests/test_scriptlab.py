@@ -33,6 +33,13 @@ KEY = "sk-test-secret-0123456789"
 EPISODES = 8
 
 
+class _QuietServer(ThreadingHTTPServer):
+    daemon_threads = True
+
+    def handle_error(self, request, client_address):
+        pass  # a client that gave up (the time-out test) breaks the pipe: printed, it would land in a later test
+
+
 class FakeServer:
     """Replays recorded replies per role (the ``ROLE:`` line of the system prompt), recording every request."""
 
@@ -56,7 +63,7 @@ class FakeServer:
                 self.end_headers()
                 self.wfile.write(data)
 
-        self.httpd = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.httpd = _QuietServer(("127.0.0.1", 0), Handler)
         self.url = f"http://127.0.0.1:{self.httpd.server_address[1]}/v1"
         self.thread = threading.Thread(target=self.httpd.serve_forever, daemon=True)
 
