@@ -125,7 +125,7 @@ if __name__ == "__main__":
 
 
 def _run(tmp_path: Path, name: str, source: str, cache: Path, *args: str) -> subprocess.CompletedProcess:
-    program = tmp_path / f"{name}.py"
+    program = tmp_path / f"entry_{name.replace('-', '_')}.py"  # gymnasium.py or ray.py would shadow the package
     program.write_text(textwrap.dedent(_RECORDER + source))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "NUMBA_NUM_THREADS": "2"}
     return subprocess.run([sys.executable, str(program), *args], cwd=tmp_path, env=env, capture_output=True,
