@@ -5,7 +5,8 @@ a run has filled it, before anything is compiled in the asking process.
 
 Each program runs in a new interpreter with ``NUMBA_CACHE_DIR`` pointing at a folder of this test's own (see
 ``tests/test_cold_start.py``, which covers the other entry points at 4 battles). The cold program compiles about
-30 s of CPU (``benchmarks/compile_time.py``); the warm ones take a few seconds each.
+30 s of CPU (``benchmarks/compile_time.py``); the warm ones take a few seconds each. Marked slow to keep the default
+run near ten minutes: ``pytest -m slow tests/test_kernel_cache.py``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
+
+import pytest
 
 BOUND = 1800  # seconds for one cold program: minutes on a loaded 2-core machine
 
@@ -65,6 +68,8 @@ def _run(tmp_path: Path, cache: Path, map_name: str) -> dict:
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow  # three fresh processes, one compiling from empty (~40 s CPU); the default run keeps
+# tests/test_cold_start.py's second-process check
 def test_train_envs_compile_once_for_every_map_and_kernels_cached_says_so(tmp_path):
     cache = tmp_path / "numba-cache"
     cold = _run(tmp_path, cache, "3m")
