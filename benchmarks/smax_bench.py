@@ -18,7 +18,7 @@ What is measured, per map and batch size N (``HeuristicEnemySMAX``, SMAX's built
 An env step is one joint step of one env (8 world ticks); N envs stepped once count N. Compile time is measured
 apart (the first two calls) and excluded; the figure is the median of the timed repeats.
 
-    /work/smax-venv/bin/python benchmarks/smax_bench.py --maps 3m,8m --num-envs 1,256 --seconds 1
+    ../smax-venv/bin/python benchmarks/smax_bench.py --maps 3m,8m --num-envs 1,256 --seconds 1
 """
 
 from __future__ import annotations

@@ -103,7 +103,7 @@ def test_keyboard_interrupt_still_propagates():
 
 def test_a_slow_policy_is_stopped_at_its_time_limit():
     def slow(obs, masks):
-        end = time.monotonic() + 8.0
+        end = time.monotonic() + 600.0
         while time.monotonic() < end:  # Python-level waiting: the watchdog interrupts it
             time.sleep(0.01)
         return masks.argmax(axis=2)
@@ -112,7 +112,7 @@ def test_a_slow_policy_is_stopped_at_its_time_limit():
     start = time.monotonic()
     with pytest.raises(ScriptError, match=r"'slow'.*time limit of 0\.5 s"):
         _step(core)
-    assert time.monotonic() - start < 6.0  # well before the 8 s the policy wanted (a generous bound)
+    assert time.monotonic() - start < 60.0  # interrupted, not waited out (the policy wanted 600 s; a hang bound)
 
 
 def test_a_policy_stuck_in_one_c_call_fails_when_it_returns():
