@@ -35,7 +35,7 @@ from smac_hard_gym.opponents import Script, make_opponent
 from smac_hard_gym.render.recorder import EpisodeRecorder
 from smac_hard_gym.smac.features import BLUE_WON, DRAW, RED_WON
 
-__all__ = ["DuelResult", "Finished", "Idle", "IDLE", "play", "run_duel", "record_engine_episode"]
+__all__ = ["DuelResult", "WinRates", "Finished", "Idle", "IDLE", "play", "run_duel", "record_engine_episode"]
 
 MAX_BATCH = 64
 IDLE = "idle"  # the name that, like None, leaves a side without orders
@@ -108,8 +108,29 @@ def play(core: TwoPlayerCore, seed: int, episodes: int,
             blue_names[restart] = core.opponent.names_of(restart)
 
 
+class WinRates:
+    """Win and draw rates from ``red_wins``, ``blue_wins``, ``draws`` and ``episodes`` (shared by results of duels)."""
+
+    red_wins: int
+    blue_wins: int
+    draws: int
+    episodes: int
+
+    @property
+    def red_win_rate(self) -> float:
+        return self.red_wins / max(1, self.episodes)
+
+    @property
+    def blue_win_rate(self) -> float:
+        return self.blue_wins / max(1, self.episodes)
+
+    @property
+    def draw_rate(self) -> float:
+        return self.draws / max(1, self.episodes)
+
+
 @dataclass
-class DuelResult:
+class DuelResult(WinRates):
     """Outcome counts of a duel, from red's point of view for ``red_wins`` and blue's for ``blue_wins``."""
 
     map: str
@@ -124,18 +145,6 @@ class DuelResult:
     timeouts: int = 0  # draws at the episode limit
     mean_steps: float = 0.0
     by_script: dict[str, dict[str, int]] = field(default_factory=dict)  # "red_name vs blue_name" -> counts
-
-    @property
-    def red_win_rate(self) -> float:
-        return self.red_wins / max(1, self.episodes)
-
-    @property
-    def blue_win_rate(self) -> float:
-        return self.blue_wins / max(1, self.episodes)
-
-    @property
-    def draw_rate(self) -> float:
-        return self.draws / max(1, self.episodes)
 
     def to_dict(self) -> dict:
         out = asdict(self)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from smac_hard_gym.envs.core import TwoPlayerCore
-from smac_hard_gym.envs.duel import play
+from smac_hard_gym.envs.duel import WinRates, play
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.opponents import ProcessIsolatedScript, Script, ScriptError, make_opponent
 from smac_hard_gym.smac.features import BLUE_WON, RED_WON
@@ -33,7 +33,7 @@ MAX_BATCH = 64
 
 
 @dataclass
-class PairingResult:
+class PairingResult(WinRates):
     """One pairing's outcome over ``episodes`` seeded episodes (rates from each side's point of view)."""
 
     red: str
@@ -52,14 +52,6 @@ class PairingResult:
     blue_first_death: str = ""
     error: str = ""  # a ScriptError that ended the pairing (its counts are then empty)
     lab_sides: tuple[str, ...] = field(default=())  # which sides a lab script played
-
-    @property
-    def red_win_rate(self) -> float:
-        return self.red_wins / max(1, self.episodes)
-
-    @property
-    def blue_win_rate(self) -> float:
-        return self.blue_wins / max(1, self.episodes)
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
