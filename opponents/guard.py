@@ -56,7 +56,7 @@ from smac_hard_gym.engine.state import (
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.opponents.api import Script, ScriptError, SideView, frozen_copy, read_only_spec
 
-__all__ = ["GuardedScript", "DEFAULT_TIME_LIMIT", "check_commands"]
+__all__ = ["GuardedScript", "DEFAULT_TIME_LIMIT", "check_commands", "call_guarded"]
 
 DEFAULT_TIME_LIMIT = 5.0  # seconds per reset/act call
 _MIN_REPEAT = 0.05  # seconds between shots at a script that keeps running past its limit
@@ -152,6 +152,27 @@ def _run_limited(seconds: float | None, fn, args) -> bool:
     return False
 
 
+def call_guarded(name: str, map_name: str, label: str, time_limit: float | None, fn, args: tuple = ()) -> None:
+    """Call ``fn(*args)`` under the time limit (None: none); what goes wrong raises a ScriptError for script ``name``
+    on ``map_name``, its cause starting with ``label`` ("act()", "the policy"): an exception, ``sys.exit``, running
+    past the limit (interrupted, or returning late from one C call). Ctrl-C and a wrapped sandbox's ScriptError pass
+    through unchanged."""
+    start = time.perf_counter()
+    try:
+        timed_out = _run_limited(time_limit, fn, args)
+    except (ScriptError, KeyboardInterrupt, _Timeout):
+        raise  # a wrapped sandbox's error, Ctrl-C (see the module docstring), an outer guard's shot
+    except SystemExit as err:
+        raise ScriptError(name, map_name, f"{label} called sys.exit({err.code!r})") from None
+    except BaseException as err:  # GeneratorExit and the script's own BaseException subclasses too
+        raise ScriptError(name, map_name, f"{label} raised {type(err).__name__}: {err}") from err
+    if timed_out:
+        raise ScriptError(name, map_name, f"{label} ran past its time limit of {time_limit:g} s and was interrupted")
+    elapsed = time.perf_counter() - start
+    if time_limit is not None and elapsed > time_limit:
+        raise ScriptError(name, map_name, f"{label} took {elapsed:.3g} s, over its time limit of {time_limit:g} s")
+
+
 class GuardedScript(Script):
     """Runs ``script`` under the guard (see the module docstring); ``name``/``name_of`` are the wrapped script's.
 
@@ -191,23 +212,7 @@ class GuardedScript(Script):
         return view.read_only(self._specs[1])
 
     def _call(self, what: str, view: SideView, fn, *args) -> None:
-        name = self.script.name
-        start = time.perf_counter()
-        try:
-            timed_out = _run_limited(self.time_limit, fn, args)
-        except (ScriptError, KeyboardInterrupt, _Timeout):
-            raise  # a wrapped sandbox's error, Ctrl-C (see the module docstring), an outer guard's shot
-        except SystemExit as err:
-            raise ScriptError(name, view.spec.name, f"{what}() called sys.exit({err.code!r})") from None
-        except BaseException as err:  # GeneratorExit and the script's own BaseException subclasses too
-            raise ScriptError(name, view.spec.name, f"{what}() raised {type(err).__name__}: {err}") from err
-        if timed_out:
-            raise ScriptError(name, view.spec.name, f"{what}() ran past its time limit of {self.time_limit:g} s "
-                              "and was interrupted")
-        elapsed = time.perf_counter() - start
-        if self.time_limit is not None and elapsed > self.time_limit:
-            raise ScriptError(name, view.spec.name, f"{what}() took {elapsed:.3g} s, over its time limit of "
-                              f"{self.time_limit:g} s")
+        call_guarded(self.script.name, view.spec.name, f"{what}()", self.time_limit, fn, args)
 
     def reset(self, view: SideView, battles: np.ndarray, rngs: list[np.random.Generator]) -> None:
         # A copy of the list: the script may keep or draw from the generators, not replace the caller's.

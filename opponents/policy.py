@@ -36,7 +36,6 @@ What a policy may be (:func:`as_policy`):
 from __future__ import annotations
 
 import inspect
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -45,7 +44,7 @@ import numpy as np
 
 from smac_hard_gym.engine.state import Commands
 from smac_hard_gym.opponents.api import Script, ScriptError, SideView
-from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT, _run_limited
+from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT, call_guarded
 from smac_hard_gym.smac.actions import validate_actions
 from smac_hard_gym.smac.features import SIDE_NAMES, SideFeatures, SmacOptions
 from smac_hard_gym.smac.kernels import check_decode_batch
@@ -205,22 +204,8 @@ class PolicyScript(Script):
     def _call(self, view: SideView, obs: np.ndarray, masks: np.ndarray, state: np.ndarray | None) -> Any:
         """The policy's answer for ``obs``/``masks``, under the time limit; its failures raise ScriptError."""
         out: list[Any] = []
-        start = time.perf_counter()
-        try:
-            timed_out = _run_limited(self.time_limit, lambda: out.append(self._act(obs, masks, state)), ())
-        except ScriptError:
-            raise
-        except SystemExit as err:
-            raise ScriptError(self.name, view.spec.name, f"the policy called sys.exit({err.code!r})") from None
-        except Exception as err:
-            raise ScriptError(self.name, view.spec.name, f"the policy raised {type(err).__name__}: {err}") from err
-        if timed_out:
-            raise ScriptError(self.name, view.spec.name, f"the policy ran past its time limit of "
-                              f"{self.time_limit:g} s and was interrupted")
-        elapsed = time.perf_counter() - start
-        if self.time_limit is not None and elapsed > self.time_limit:
-            raise ScriptError(self.name, view.spec.name, f"the policy took {elapsed:.3g} s, over its time limit of "
-                              f"{self.time_limit:g} s")
+        call_guarded(self.name, view.spec.name, "the policy", self.time_limit,
+                     lambda: out.append(self._act(obs, masks, state)))
         return out[0]
 
     def _validated(self, actions: Any, view: SideView, feats: SideFeatures, rows: np.ndarray) -> np.ndarray:
