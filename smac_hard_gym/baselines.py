@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from smac_hard_gym.files import atomic_path, atomic_write, write_json, write_text
+from smac_hard_gym.files import atomic_path, atomic_write, read_json, write_json, write_text
 from smac_hard_gym.training import TEST_SEED_BASE
 
 __all__ = ["SweepConfig", "Run", "PAPER", "plan", "run_state", "run_sweep", "aggregate", "write_report",
@@ -365,12 +365,6 @@ class MalformedFile(ValueError):
     """A file of a run or of the sweep cannot be read (the message names the file and what is wrong)."""
 
 
-def _read_json(path: Path, what: str) -> Any:
-    from smac_hard_gym.training import read_json
-
-    return read_json(path, what)
-
-
 def _read_curve(path: Path) -> dict[int, float]:
     try:
         with path.open(newline="", encoding="utf-8") as handle:
@@ -430,10 +424,10 @@ def _read_run(path: Path, out: Path) -> tuple[dict[str, Any], dict[int, float] |
     """One finished run's row, curve, black-box evaluation and value estimate; malformed files raise
     :class:`MalformedFile` naming them."""
     summary_path = path / "summary.json"
-    summary = _object(_read_json(summary_path, "run summary"), summary_path, "run summary")
+    summary = _object(read_json(summary_path, "run summary"), summary_path, "run summary")
     train_config = {}
     if (path / "config.json").is_file():
-        train_config = _object(_read_json(path / "config.json", "run config"), path / "config.json", "run config")
+        train_config = _object(read_json(path / "config.json", "run config"), path / "config.json", "run config")
     seed = train_config.get("seed")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
         raise MalformedFile(f"{path / 'config.json'}: malformed file (seed is {seed!r}, expected an int)")
@@ -448,7 +442,7 @@ def _read_run(path: Path, out: Path) -> tuple[dict[str, Any], dict[int, float] |
     evaluation = None
     if (path / "blackbox.json").is_file():
         bb_path = path / "blackbox.json"
-        evaluation = _object(_read_json(bb_path, "black-box evaluation"), bb_path, "black-box evaluation")
+        evaluation = _object(read_json(bb_path, "black-box evaluation"), bb_path, "black-box evaluation")
         scripts = evaluation.get("scripts")
         mixture = evaluation.get("mixture")
         weights = evaluation.get("weights")
@@ -462,7 +456,7 @@ def _read_run(path: Path, out: Path) -> tuple[dict[str, Any], dict[int, float] |
     value = None
     if (path / "value.json").is_file():
         value_path = path / "value.json"
-        value = _number(_object(_read_json(value_path, "value estimate"), value_path, "value estimate"),
+        value = _number(_object(read_json(value_path, "value estimate"), value_path, "value estimate"),
                         "mean_value", value_path)
     return row, curve, evaluation, value
 
@@ -514,7 +508,7 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     pool_table = [{"map": m, "script": s, **spread(v)} for (m, s), v in sorted(pool.items(), key=script_order)]
     saved = {}
     if config is None and (out / "results.json").is_file():
-        saved = _object(_read_json(out / "results.json", "sweep results"), out / "results.json",
+        saved = _object(read_json(out / "results.json", "sweep results"), out / "results.json",
                         "sweep results").get("config", {})
         if not isinstance(saved, dict):
             raise MalformedFile(f"{out / 'results.json'}: malformed sweep results (config is {saved!r}, expected "
@@ -757,7 +751,7 @@ def write_report(out: str | Path, path: str | Path) -> Path:
     if (out / "runs").is_dir():
         results = aggregate(out)
     elif (out / "results.json").is_file():
-        results = _object(_read_json(out / "results.json", "sweep results"), out / "results.json", "sweep results")
+        results = _object(read_json(out / "results.json", "sweep results"), out / "results.json", "sweep results")
         for key in ("config", "runs", "table", "blackbox"):
             expected = dict if key == "config" else list
             if not isinstance(results.get(key, expected()), expected):

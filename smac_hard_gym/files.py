@@ -8,7 +8,8 @@ temporary file is removed on any exception; only a hard kill, SIGKILL or power l
 - :func:`atomic_write`: a context manager that yields an open file (text or binary) to write into;
 - :func:`atomic_path`: a context manager that yields a temporary path with the target's suffix, for writers that
   take a path (stable-baselines3's ``model.save``, matplotlib's ``savefig``, video writers);
-- :func:`write_text`, :func:`write_json`: the usual one-call cases.
+- :func:`write_text`, :func:`write_json`: the usual one-call cases; :func:`read_json` reads one back with a one-line
+  error for a file that is not JSON.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["atomic_write", "atomic_path", "write_text", "write_json"]
+__all__ = ["atomic_write", "atomic_path", "write_text", "write_json", "read_json"]
 
 
 def _umask() -> int:
@@ -101,3 +102,19 @@ def write_json(path: str | os.PathLike, data: Any, indent: int | None = 2) -> Pa
     """Write ``data`` as JSON (and a final newline) to ``path`` atomically; returns the path. The text is built
     before the file is touched, so data JSON cannot store leaves the old file as it was."""
     return write_text(path, json.dumps(data, indent=indent) + "\n")
+
+
+def read_json(path: str | Path, what: str = "JSON file") -> Any:
+    """The JSON in ``path``; a file that cannot be read or parsed raises one ValueError naming it (a missing file
+    raises FileNotFoundError)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no {what} at {str(path)!r}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ValueError(f"{path}: unreadable {what} ({err})") from None
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as err:
+        raise ValueError(f"{path}: malformed {what} ({err})") from None

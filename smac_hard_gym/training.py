@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import json
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -35,10 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from smac_hard_gym.files import atomic_path, atomic_write, write_json
+from smac_hard_gym.files import atomic_path, atomic_write, read_json, write_json
 
 __all__ = ["TrainConfig", "EvalResult", "train", "evaluate", "evaluate_scripts", "resolve_opponents",
-           "load_run_config", "load_model", "read_json", "CURVE_COLUMNS", "TEST_SEED_BASE", "eval_seeds",
+           "load_run_config", "load_model", "CURVE_COLUMNS", "TEST_SEED_BASE", "eval_seeds",
            "training_seeds", "win_rate_spread"]
 
 CURVE_COLUMNS = ("timesteps", "win_rate", "mean_return", "mean_length", "episodes", "train_win_rate",
@@ -707,22 +706,6 @@ def load_run_config(model_path: str | Path) -> TrainConfig | None:
         return TrainConfig(**{k: v for k, v in data.items() if k in known})
     except (TypeError, ValueError) as err:
         raise ValueError(f"{path}: malformed run config ({err})") from None
-
-
-def read_json(path: str | Path, what: str = "JSON file") -> Any:
-    """The JSON in ``path``; a file that cannot be read or parsed raises one ValueError naming it (a missing file
-    raises FileNotFoundError)."""
-    path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise FileNotFoundError(f"no {what} at {str(path)!r}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ValueError(f"{path}: unreadable {what} ({err})") from None
-    try:
-        return json.loads(text)
-    except (ValueError, RecursionError) as err:
-        raise ValueError(f"{path}: malformed {what} ({err})") from None
 
 
 def load_model(path: str | Path) -> Any:
