@@ -82,6 +82,9 @@ class UnitSpec:
     passive: bool = False  # SMAC *_RL: no auto-acquire while idle, no response when attacked
     smac_max_cooldown: float = 15.0  # smac: normaliser of the state's cooldown/energy column
     autocast_range: float = 0.0  # a healer's heal auto-cast reach, edge to edge (0: no auto-cast)
+    missile_speed: float = 0.0  # the weapon launches a homing missile at this speed per Normal second (0: instant)
+    second_hit_delay: float = 0.0  # game loops from the first hit to the last (zealot's second blade; 0: together)
+    second_hit_reach: float = 0.0  # ... which lands only within this centre distance of the attacker
     sources: dict[str, str] = field(default_factory=dict, compare=False)
 
 
@@ -104,9 +107,10 @@ _STANDARD: list[UnitSpec] = [
         "marauder", "Marauder", "marauder", 51, "T", health=125, shield=0, armor=1, damage=10, hits=1,
         bonus_damage=10, bonus_attribute=ARMORED, cooldown=1.5 * LOOPS_PER_SECOND, range=6,
         hits_ground=True, hits_air=False, speed=2.25, radius=0.5625, sight=10, attributes=ARMORED | BIO,
-        smac_max_cooldown=25,
+        smac_max_cooldown=25, missile_speed=20.0,
         sources={"health,armor,speed,sight,radius,attributes": "xml", "damage,bonus,range": "techtree",
-                 "cooldown": "techtree 1.5 Normal s (lqp 1.07 Faster)", "smac_max_cooldown": "smac"},
+                 "cooldown": "techtree 1.5 Normal s (lqp 1.07 Faster)", "smac_max_cooldown": "smac",
+                 "missile_speed": "gamedata PunisherGrenadesWeapon MaxSpeed 20"},
     ),
     UnitSpec(
         "medivac", "Medivac", "medivac", 54, "T", health=150, shield=0, armor=1, damage=0, hits=0,
@@ -124,18 +128,21 @@ _STANDARD: list[UnitSpec] = [
         "stalker", "Stalker", "stalker", 74, "P", health=80, shield=80, armor=1, damage=13, hits=1,
         bonus_damage=5, bonus_attribute=ARMORED, cooldown=1.87 * LOOPS_PER_SECOND, range=6,
         hits_ground=True, hits_air=True, speed=2.9531, radius=0.625, sight=10, attributes=ARMORED | MECH,
-        smac_max_cooldown=35,
+        smac_max_cooldown=35, missile_speed=18.75,
         sources={"health,shield,armor,speed,sight,radius,attributes": "xml", "damage,bonus,range": "techtree",
-                 "cooldown": "techtree 1.87 Normal s (lqp 1.34 Faster)", "smac_max_cooldown": "smac"},
+                 "cooldown": "techtree 1.87 Normal s (lqp 1.34 Faster)", "smac_max_cooldown": "smac",
+                 "missile_speed": "gamedata StalkerWeapon (MissileDefault) MaxSpeed 18.75"},
     ),
     UnitSpec(
         "zealot", "Zealot", "zealot", 73, "P", health=100, shield=50, armor=1, damage=8, hits=2,
         bonus_damage=0, bonus_attribute=0, cooldown=1.2 * LOOPS_PER_SECOND, range=0.1,
         hits_ground=True, hits_air=False, speed=2.25, radius=0.5, sight=9, attributes=LIGHT | BIO,
-        smac_max_cooldown=22,
+        smac_max_cooldown=22, second_hit_delay=0.28 * LOOPS_PER_SECOND, second_hit_reach=2.1,
         sources={"health,shield,armor,speed,sight,attributes": "xml", "radius": "techtree 0.5 (xml unset)",
                  "damage,hits,range": "techtree", "cooldown": "techtree 1.2 Normal s (lqp 0.86 Faster)",
-                 "smac_max_cooldown": "smac"},
+                 "smac_max_cooldown": "smac",
+                 "second_hit_delay,second_hit_reach": "gamedata PsiBladesBurst periods 0, 0.28 s; validator "
+                                                      "ZealotAttackDamageMaxRange 2.1"},
     ),
     UnitSpec(
         "colossus", "Colossus", "colossus", 4, "P", health=200, shield=150, armor=1, damage=10, hits=2,
@@ -152,10 +159,10 @@ _STANDARD: list[UnitSpec] = [
         "hydralisk", "Hydralisk", "hydralisk", 107, "Z", health=90, shield=0, armor=0, damage=12, hits=1,
         bonus_damage=0, bonus_attribute=0, cooldown=0.825 * LOOPS_PER_SECOND, range=5,
         hits_ground=True, hits_air=True, speed=2.25, radius=0.625, sight=9, attributes=LIGHT | BIO,
-        regen=ZERG_REGEN_PER_SECOND, smac_max_cooldown=10,
+        regen=ZERG_REGEN_PER_SECOND, smac_max_cooldown=10, missile_speed=40.0,
         sources={"health": "lqp 90 (standard unit)", "damage,range,radius,sight,attributes": "techtree",
                  "cooldown": "techtree 0.825 Normal s (lqp 0.59 Faster)", "speed": "xml 2.25 off creep",
-                 "regen": "xml", "smac_max_cooldown": "smac"},
+                 "regen": "xml", "smac_max_cooldown": "smac", "missile_speed": "gamedata NeedleSpinesWeapon Speed 40"},
     ),
     UnitSpec(
         "zergling", "Zergling", "zergling", 105, "Z", health=35, shield=0, armor=0, damage=5, hits=1,
@@ -238,11 +245,12 @@ STAT_COLUMNS = (
     "health", "shield", "armor", "damage", "hits", "bonus_damage", "bonus_attribute", "cooldown", "range",
     "hits_ground", "hits_air", "speed", "radius", "sight", "attributes", "is_air", "cliff_walk", "weapon",
     "splash_radius", "splash_length", "splash_width", "energy_start", "energy_max", "energy_regen", "heal_rate",
-    "heal_energy_per_hp", "regen", "passive", "scan_range", "shield_regen", "mover",
+    "heal_energy_per_hp", "regen", "passive", "scan_range", "shield_regen", "mover", "missile_speed",
+    "second_hit_delay", "second_hit_reach",
 )
 S = {name: i for i, name in enumerate(STAT_COLUMNS)}  # column index by name
 
-_PER_SECOND_COLUMNS = ("speed", "energy_regen", "heal_rate", "regen", "shield_regen")
+_PER_SECOND_COLUMNS = ("speed", "energy_regen", "heal_rate", "regen", "shield_regen", "missile_speed")
 
 
 def scan_range(spec: UnitSpec) -> float:

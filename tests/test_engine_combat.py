@@ -50,33 +50,43 @@ def test_marine_duel_is_a_simultaneous_draw():
 
 def test_stalker_kills_zealot_in_13_shots():
     # 13 damage (no bonus: zealot is light): shields 50 -> 37, 24, 11; 4th shot: 11 absorbed, 2 - 1 armour = 1 HP;
-    # then 12 per shot: 99 HP needs 9 more. 13 shots, the last at ceil(12 * 29.92) = 360.
+    # then 12 per shot: 99 HP needs 9 more. 13 shots, the last fired at ceil(12 * 29.92) = 360. Each is a missile
+    # at 18.75 per second (1.171875 a loop) over 5 centre to centre: it lands ceil(4.27) = 5 loops after it is fired.
     engine = engine_with(["Zealot_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
+    engine.step(n_loops=5)
+    assert engine.state.shield[0, 0] == pytest.approx(50.0)  # fired in loop 0, still in flight
     engine.step(n_loops=1)
     assert engine.state.shield[0, 0] == pytest.approx(37.0)
     assert engine.state.health[0, 0] == pytest.approx(100.0)
     engine.reset()
     for slot, pos in {0: (10.0, 16.0), 1: (15.0, 16.0)}.items():
         engine.place(0, slot, x=pos[0], y=pos[1])
-    assert _death_loop(engine, 0) == shot_loop(12, STALKER_PERIOD) == 360
+    assert _death_loop(engine, 0) == shot_loop(12, STALKER_PERIOD) + 5 == 365
 
 
 def test_zealot_two_hits_against_stalker_shields_and_armour():
-    # 8 x 2 per attack. Shields 80 absorb 10 hits (5 attacks); then 8 - 1 armour = 7 per hit on 80 HP: 12 hits
-    # (6 attacks). 11 attacks, the last at ceil(10 * 19.2) = 192.
+    # 8 x 2 per attack, the second blade 0.28 s (ceil(4.48) = 5 loops) after the first (PsiBladesBurst). Shields 80
+    # absorb 10 hits; then 8 - 1 armour = 7 per hit on 80 HP: 12 hits. 22 hits: the second blade of the 11th
+    # attack, which starts at ceil(10 * 19.2) = 192, lands at 197.
     engine = engine_with(["Stalker_RL"], ["Zealot"], {0: (10.0, 16.0), 1: (11.2, 16.0)})
     engine.step(n_loops=1)
-    assert engine.state.shield[0, 0] == pytest.approx(64.0)  # two hits landed in one attack
+    assert engine.state.shield[0, 0] == pytest.approx(72.0)  # the first blade
+    engine.step(n_loops=4)
+    assert engine.state.shield[0, 0] == pytest.approx(72.0)
+    engine.step(n_loops=1)
+    assert engine.state.shield[0, 0] == pytest.approx(64.0)  # the second blade, in loop 5
     engine.reset()
     for slot, pos in {0: (10.0, 16.0), 1: (11.2, 16.0)}.items():
         engine.place(0, slot, x=pos[0], y=pos[1])
-    assert _death_loop(engine, 0) == shot_loop(10, ZEALOT_PERIOD) == 192
+    assert _death_loop(engine, 0) == shot_loop(10, ZEALOT_PERIOD) + 5 == 197
 
 
 def test_zealot_hits_armour_twice_per_attack():
-    # Against a marauder (armour 1, 125 HP): 2 x (8 - 1) = 14 per attack.
+    # Against a marauder (armour 1, 125 HP): 2 x (8 - 1) = 14 per attack, the second hit 5 loops after the first.
     engine = engine_with(["Marauder_RL"], ["Zealot"], {0: (10.0, 16.0), 1: (11.1, 16.0)})
     engine.step(n_loops=1)
+    assert engine.state.health[0, 0] == pytest.approx(118.0)
+    engine.step(n_loops=5)
     assert engine.state.health[0, 0] == pytest.approx(111.0)
 
 
@@ -87,11 +97,12 @@ def test_zealot_hits_armour_twice_per_attack():
     ("Stalker_RL", {"shield": 60.0, "health": 80.0}, 9),
 ])
 def test_marauder_bonus_against_armoured(victim, first_hit, shots_to_kill):
+    # The grenade is a missile at 20 per second (1.25 a loop): over 5 it lands exactly 4 loops after it is fired.
     engine = engine_with([victim], ["Marauder"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
-    engine.step(n_loops=1)
+    engine.step(n_loops=5)
     for field, value in first_hit.items():
         assert getattr(engine.state, field)[0, 0] == pytest.approx(value)
-    assert 1 + _death_loop(engine, 0) == shot_loop(shots_to_kill - 1, MARAUDER_PERIOD)  # one loop already ran
+    assert 5 + _death_loop(engine, 0) == shot_loop(shots_to_kill - 1, MARAUDER_PERIOD) + 4  # five loops already ran
 
 
 def test_colossus_line_splash_hits_a_marine_line():

@@ -92,8 +92,8 @@ def test_separation_pushes_do_not_depend_on_slot_order():
     for perm in ([0, 1, 2], [2, 0, 1], [1, 2, 0]):
         x, y = x0[perm].copy(), y0[perm].copy()
         _separation(3, np.zeros(3, np.int8), np.ones(3, dtype=bool), x, y, np.zeros(3), np.zeros(3),
-                    np.full(3, ORDER_IDLE, np.int8), np.zeros(3), np.zeros(3), np.full(3, -1, np.int32), slot_stats,
-                    walk, np.arange(3, dtype=np.int32), np.zeros(3), 0.375)
+                    np.full(3, ORDER_IDLE, np.int8), np.zeros(3), np.zeros(3), np.full(3, -1, np.int32),
+                    np.zeros(3, np.int8), slot_stats, walk, np.arange(3, dtype=np.int32), np.zeros(3), 0.375)
         back = np.argsort(perm)
         results.append((x[back], y[back]))
     for x, y in results[1:]:

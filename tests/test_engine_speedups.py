@@ -104,7 +104,7 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     scratch_x, scratch_y = np.zeros(len(names)), np.zeros(len(names))
     n = len(names)
     worst = _separation(n, np.zeros(n, np.int8), alive, got_x, got_y, scratch_x, scratch_y, order, np.zeros(n),
-                        np.zeros(n), np.full(n, -1, np.int32), slot_stats, walk, by_x, key,
+                        np.zeros(n), np.full(n, -1, np.int32), np.zeros(n, np.int8), slot_stats, walk, by_x, key,
                         slot_stats[:, S["radius"]].max())
     np.testing.assert_allclose(got_x, expected_x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got_y, expected_y, rtol=0, atol=1e-12)
@@ -124,7 +124,8 @@ def test_sweep_passes_clear_a_dense_crowd():
     by_x, key, scratch_x, scratch_y = np.arange(n, dtype=np.int32), np.zeros(n), np.zeros(n), np.zeros(n)
     for _ in range(400):
         if _separation(n, np.zeros(n, np.int8), alive, x, y, scratch_x, scratch_y, order, np.zeros(n), np.zeros(n),
-                       np.full(n, -1, np.int32), slot_stats, walk, by_x, key, 0.375) < 1e-6:
+                       np.full(n, -1, np.int32), np.zeros(n, np.int8), slot_stats, walk, by_x, key,
+                       0.375) < 1e-6:
             break
     dist = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) + np.eye(n) * 10
     assert dist.min() > 0.75 - 1e-5

@@ -53,12 +53,18 @@ def test_a_unit_prefers_the_enemy_attacking_it():
 
 
 def test_response_to_a_hit_from_beyond_scan_range():
-    # A stalker (range 6, + radii) shoots a blue zergling from 6.8 away, beyond its scan range (5): it runs at it.
+    # A stalker (range 6, + radii) shoots a blue zergling 6.8 away (edge to edge), beyond its scan range (5): it
+    # runs at it. The stalker walks 0.8 at 2.9531 / 16 a loop, reaching range in loop 4 (centre distance 6.877),
+    # and fires; the missile flies ceil(6.877 / 1.171875) = 6 loops and lands in loop 10; the zergling answers in 11.
     engine = engine_with(["Stalker_RL"], ["Zergling"], {0: (10.0, 16.0), 1: (10.0 + 6.8 + 0.625 + 0.375, 16.0)})
     engine.commands.kind[0, 0] = CMD_ATTACK
     engine.commands.target[0, 0] = 1
     x0 = engine.state.x[0, 1]
-    engine.step()
+    engine.step(n_loops=10)
+    assert engine.state.health[0, 1] == 35.0
+    engine.step(n_loops=1)
+    assert engine.state.x[0, 1] == x0 and engine.state.health[0, 1] == pytest.approx(35.0 - 13.0)
+    engine.step(n_loops=1)
     assert engine.state.target[0, 1] == 0 and engine.state.x[0, 1] < x0
 
 

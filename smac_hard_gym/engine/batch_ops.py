@@ -56,3 +56,7 @@ def reset_battles(st, battles, utype, side, x, y, health, shield, energy):
             st.attacker[b, i] = NO_UNIT
             st.fired_at[b, i] = NO_UNIT
             st.burst[b, i] = False
+            st.stance[b, i] = 0
+            st.pending_target[b, i] = NO_UNIT
+            st.pending_eta[b, i] = 0
+            st.pending_hits[b, i] = 0

@@ -14,9 +14,9 @@ state once per env step and hands them to small mechanics, one function per mech
    kill each other in the same loop (SC2 resolves in sequence; simultaneity keeps the batch order-free);
 6. ``_deaths``.
 
-Simplifications against SC2 (listed in the README): damage lands when the weapon fires (no projectile travel or
-damage point), separation is a positional push rather than SC2's steering. The only random draw is SC2's random
-attack delay, from each battle's seeded xorshift stream (``BattleState.rng``).
+Simplifications against SC2 (listed in the README): damage lands when the weapon fires, or a missile's flight
+later (no damage point), separation is a positional push rather than SC2's steering. The only random draw is SC2's
+random attack delay, from each battle's seeded xorshift stream (``BattleState.rng``).
 
 Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechanisms' own tests):
 
@@ -61,6 +61,9 @@ from smac_hard_gym.engine.state import (
     ORDER_HOLD,
     ORDER_IDLE,
     ORDER_MOVE,
+    STANCE_FIRING,
+    STANCE_NONE,
+    STANCE_WALKED,
 )
 from smac_hard_gym.engine.terrain import MOVER_AIR
 from smac_hard_gym.units import BIO, MIN_DAMAGE, SHIELD_REGEN_DELAY_LOOPS, WEAPON_BURST, WEAPON_HEAL, S
@@ -76,6 +79,7 @@ _SPLASH_R, _SPLASH_L, _SPLASH_W = S["splash_radius"], S["splash_length"], S["spl
 _ENERGY_MAX, _ENERGY_REGEN = S["energy_max"], S["energy_regen"]
 _HEAL_RATE, _HEAL_COST, _REGEN = S["heal_rate"], S["heal_energy_per_hp"], S["regen"]
 _PASSIVE, _SCAN, _SHIELD_REGEN = S["passive"], S["scan_range"], S["shield_regen"]
+_MISSILE_SPEED, _SECOND_DELAY, _SECOND_REACH = S["missile_speed"], S["second_hit_delay"], S["second_hit_reach"]
 
 _SHIELD_DELAY = SHIELD_REGEN_DELAY_LOOPS
 _MIN_DAMAGE = MIN_DAMAGE
@@ -420,8 +424,10 @@ def _slide(px, py, nx, ny, mover, walk):
 
 
 @inline
-def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, slot_stats, walk, next_hop, los, open_field):
-    """Every unit steps toward its target (unless in range) or its order point.
+def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, stance, slot_stats, walk, next_hop, los,
+              open_field):
+    """Every unit steps toward its target (unless in range) or its order point; ``stance`` records who walked and
+    who stood to fire, for separation.
 
     Simultaneous: whether a unit is in range and where its target stands are read from ``x0, y0``, the positions
     when the phase began. Read live, the lower slots (red) would move first and the higher slots would find the gap
@@ -431,6 +437,7 @@ def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, slot_stat
     for i in range(n):
         x0[i] = x[i]
         y0[i] = y[i]
+        stance[i] = STANCE_NONE
     for i in range(n):
         if not alive[i]:
             continue
@@ -442,7 +449,8 @@ def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, slot_stat
         if j >= 0:
             if _within(x0[i], y0[i], x0[j], y0[j],
                        slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
-                continue  # in range: stand and act
+                stance[i] = STANCE_FIRING  # in range: stand and act
+                continue
             gx, gy = x0[j], y0[j]
         elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
             gx, gy = order_x[i], order_y[i]
@@ -463,6 +471,7 @@ def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, slot_stat
             continue
         step = min(speed, d)
         x[i], y[i] = _slide(x[i], y[i], x[i] + dx / d * step, y[i] + dy / d * step, mover, walk)
+        stance[i] = STANCE_WALKED
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -491,14 +500,36 @@ def _sort_by_x(n, by_x, key, x):
 
 
 @helper
-def _push_apart(i, j, dx, dy, d2, rr, push_x, push_y, order, slot_stats):
-    """Add the pushes that part overlapping units i and j (j - i = (dx, dy), d2 = dx^2 + dy^2 < rr^2) to
-    ``push_x, push_y``; return the depth of the overlap (0 when neither may move).
+def _push_weights(i, j, side, order, stance, slot_stats):
+    """How the overlap of units i and j is shared: ``(wi, wj)``, each unit's part in proportion to its weight.
 
-    Units on hold or rooted are not pushed; a movable unit takes the whole push from an unmovable one.
+    SC2 (docs/engine_rules.md, section 1): units on hold or rooted are not pushed. Every SMAC unit has the same push
+    priority, so enemies push nobody: a unit that walked into an enemy is put back (when neither walked, both shoved
+    there by their own side, they share it, an approximation). Among own units a walker shoves an idle one but not
+    one standing to fire; walkers flow round those.
     """
     wi = 1.0 if slot_stats[i, _SPEED] > 0.0 and order[i] != ORDER_HOLD else 0.0
     wj = 1.0 if slot_stats[j, _SPEED] > 0.0 and order[j] != ORDER_HOLD else 0.0
+    si, sj = stance[i], stance[j]
+    if side[i] != side[j]:
+        if si == STANCE_WALKED or sj == STANCE_WALKED:
+            if si != STANCE_WALKED:
+                wi = 0.0
+            if sj != STANCE_WALKED:
+                wj = 0.0
+    elif si == STANCE_FIRING and sj == STANCE_WALKED:
+        wi = 0.0
+    elif sj == STANCE_FIRING and si == STANCE_WALKED:
+        wj = 0.0
+    return wi, wj
+
+
+@helper
+def _push_apart(i, j, dx, dy, d2, rr, wi, wj, push_x, push_y):
+    """Add the pushes that part overlapping units i and j (j - i = (dx, dy), d2 = dx^2 + dy^2 < rr^2), shared by
+    the weights ``wi, wj`` (``_push_weights``), to ``push_x, push_y``; return the depth of the overlap (0 when
+    neither may move).
+    """
     if wi + wj == 0.0:
         return 0.0
     d = math.sqrt(d2)
@@ -530,8 +561,8 @@ def _bump(mover, other, order, order_x, order_y, target, x, y):
 
 
 @inline
-def _separation(n, side, alive, x, y, push_x, push_y, order, order_x, order_y, target, slot_stats, walk, by_x, key,
-                max_radius):
+def _separation(n, side, alive, x, y, push_x, push_y, order, order_x, order_y, target, stance, slot_stats, walk, by_x,
+                key, max_radius):
     """One pass of pushes over every pair that overlaps when the pass begins; returns the deepest overlap pushed
     (0: nothing moved).
 
@@ -576,7 +607,8 @@ def _separation(n, side, alive, x, y, push_x, push_y, order, order_x, order_y, t
                     push_x[k] = 0.0
                     push_y[k] = 0.0
                 pushed = True
-            worst = max(worst, _push_apart(i, j, dx, dy, d2, rr, push_x, push_y, order, slot_stats))
+            wi, wj = _push_weights(i, j, side, order, stance, slot_stats)
+            worst = max(worst, _push_apart(i, j, dx, dy, d2, rr, wi, wj, push_x, push_y))
             if side[i] == side[j]:
                 if _bump(i, j, order, order_x, order_y, target, x, y):
                     order[i] = _ARRIVING
@@ -699,9 +731,62 @@ def _target_in_reach(i, alive0, x, y, target, slot_stats):
     return j
 
 
+@helper
+def _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
+                  slot_stats):
+    """Delayed hits due this loop land: missiles (they home and never miss, and land even if their shooter has
+    died) and the zealot's second blade (only while the zealot lives and its target is within the blade's reach)."""
+    for i in range(n):
+        j = pending_target[i]
+        if j < 0:
+            continue
+        pending_eta[i] -= 1
+        if pending_eta[i] > 0:
+            continue
+        pending_target[i] = NO_UNIT
+        if not alive0[j]:
+            continue
+        if slot_stats[i, _MISSILE_SPEED] <= 0.0 and not (
+                alive0[i] and _within(x[i], y[i], x[j], y[j], slot_stats[i, _SECOND_REACH])):
+            continue
+        amount = _hit_amount(slot_stats, i, j)
+        for _ in range(pending_hits[i]):
+            _damage(j, amount, i, health, shield, shield_wait, attacker, slot_stats)
+
+
+@helper
+def _fire(i, j, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
+          slot_stats):
+    """Unit i's plain weapon fires at unit j: instant hits land now, a missile's when it arrives (flight centre to
+    centre at the missile's speed), a zealot's second blade ``second_hit_delay`` loops after the first.
+
+    One pending hit per unit is enough: every SMAC missile's flight and the blade's delay are shorter than the
+    weapon's period (docs/engine_rules.md, section 2).
+    """
+    hits = int(slot_stats[i, _HITS])
+    speed = slot_stats[i, _MISSILE_SPEED]
+    if speed > 0.0:
+        dx, dy = x[j] - x[i], y[j] - y[i]
+        pending_target[i] = j
+        pending_eta[i] = max(1, math.ceil(math.sqrt(dx * dx + dy * dy) / speed))
+        pending_hits[i] = hits
+        return
+    now = hits
+    if slot_stats[i, _SECOND_DELAY] > 0.0 and hits > 1:
+        now = 1
+        pending_target[i] = j
+        pending_eta[i] = max(1, math.ceil(slot_stats[i, _SECOND_DELAY]))
+        pending_hits[i] = hits - 1
+    amount = _hit_amount(slot_stats, i, j)
+    for _ in range(now):
+        _damage(j, amount, i, health, shield, shield_wait, attacker, slot_stats)
+
+
 @inline
 def _attacks(n, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
-             fired_at, burst, slot_stats, rng, jitter_lo, jitter_hi):
+             fired_at, burst, pending_target, pending_eta, pending_hits, slot_stats, rng, jitter_lo, jitter_hi):
+    _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
+                  slot_stats)
     heals = False
     for i in range(n):
         j = _target_in_reach(i, alive0, x, y, target, slot_stats)
@@ -716,9 +801,8 @@ def _attacks(n, side, alive0, x, y, health, shield, energy, cooldown, shield_wai
             if weapon == _LINE:
                 _line_splash(n, i, j, side, alive0, x, y, health, shield, shield_wait, attacker, slot_stats)
             else:
-                amount = _hit_amount(slot_stats, i, j)
-                for _ in range(int(slot_stats[i, _HITS])):
-                    _damage(j, amount, i, health, shield, shield_wait, attacker, slot_stats)
+                _fire(i, j, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
+                      slot_stats)
             cooldown[i] += slot_stats[i, _COOLDOWN]
             if jitter_hi > jitter_lo:  # SC2 adds a random delay to every attack
                 cooldown[i] += jitter_lo + (jitter_hi - jitter_lo) * _uniform(rng)
@@ -771,6 +855,8 @@ def _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, nex
     cooldown, shield_wait = st.cooldown[b], st.shield_wait[b]
     order, order_target, order_x, order_y = st.order[b], st.order_target[b], st.order_x[b], st.order_y[b]
     target, attacker, fired_at, burst = st.target[b], st.attacker[b], st.fired_at[b], st.burst[b]
+    stance = st.stance[b]
+    pending_target, pending_eta, pending_hits = st.pending_target[b], st.pending_eta[b], st.pending_hits[b]
     order_by_x, sort_key, engaged_at_loop, x_at_loop, y_at_loop = by_x[b], key[b], engaged[b], x0[b], y0[b]
     max_radius = 0.0
     for i in range(n):
@@ -781,20 +867,20 @@ def _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, nex
     for _ in range(n_loops):
         _timers(n, alive, alive0, target, engaged_at_loop, health, shield, energy, cooldown, shield_wait, slot_stats)
         _targeting(n, side, alive, x, y, health, order, order_target, target, engaged_at_loop, attacker, slot_stats)
-        _movement(n, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats, walk, next_hop,
-                  los, open_field)
+        _movement(n, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, stance, slot_stats, walk,
+                  next_hop, los, open_field)
         # Separation reuses movement's snapshot arrays as its push accumulators (movement is done with them).
-        worst = _separation(n, side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats,
-                            walk, order_by_x, sort_key, max_radius)
+        worst = _separation(n, side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, stance,
+                            slot_stats, walk, order_by_x, sort_key, max_radius)
         _attacks(n, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
-                 fired_at, burst, slot_stats, rng, jitter_lo, jitter_hi)
+                 fired_at, burst, pending_target, pending_eta, pending_hits, slot_stats, rng, jitter_lo, jitter_hi)
         _deaths(n, alive, health, shield, order, target)
     # Crowds chasing one target re-compress a little every loop; settle them before anyone observes the state. When
     # the last pass pushed nothing, nothing has moved since, and a settling pass would push nothing either.
     if worst > 0.0:
         for _ in range(_SETTLE_PASSES):
-            if _separation(n, side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, slot_stats,
-                           walk, order_by_x, sort_key, max_radius) < _SETTLED:
+            if _separation(n, side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, stance,
+                           slot_stats, walk, order_by_x, sort_key, max_radius) < _SETTLED:
                 break
     # Through a view: inlined into step_batch's prange body, ``st.loop[b] += n_loops`` wrote to a private copy
     # (numba 0.68 drops item writes to a named tuple's 1-D field in a parfor; writes through views land).

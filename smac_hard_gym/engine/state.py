@@ -21,6 +21,11 @@ COMMAND_NAMES = ("noop", "stop", "hold", "move", "attack", "attack_move", "heal"
 RED, BLUE = 0, 1
 NO_UNIT = -1
 
+# What a unit did in the current game loop's movement (``BattleState.stance``), read by separation: SC2 lets a unit
+# that walks push its own side's idle units but not units standing to fire, and enemies push nobody
+# (docs/engine_rules.md, section 1).
+STANCE_NONE, STANCE_WALKED, STANCE_FIRING = 0, 1, 2
+
 
 class BattleState(NamedTuple):
     """State of B battles (arrays (B, U) unless noted). Health and shields are current values."""
@@ -44,6 +49,10 @@ class BattleState(NamedTuple):
     fired_at: np.ndarray  # int32: last unit fired at (or healed) during the latest env step, for rendering
     burst: np.ndarray  # bool: a baneling that exploded during the latest env step
     alive_at_loop: np.ndarray  # bool scratch: alive when the current game loop began (simultaneous fire)
+    stance: np.ndarray  # int8 scratch: STANCE_* of the current loop's movement (who may push whom)
+    pending_target: np.ndarray  # int32: unit a delayed hit will land on (missile in flight, zealot's second blade)
+    pending_eta: np.ndarray  # int32: game loops until that hit lands
+    pending_hits: np.ndarray  # int8: how many of the weapon's hits land then
     loop: np.ndarray  # int64 (B,): game loops since the battle's reset
     rng: np.ndarray  # uint64 (B,): the battle's random stream (weapon cooldown jitter), seeded at reset
 
@@ -76,14 +85,15 @@ _FIELD_DTYPES = {
     "health": np.float64, "shield": np.float64, "energy": np.float64, "cooldown": np.float64,
     "shield_wait": np.float64, "order": np.int8, "order_target": np.int32, "order_x": np.float64,
     "order_y": np.float64, "target": np.int32, "attacker": np.int32, "fired_at": np.int32, "burst": np.bool_,
-    "alive_at_loop": np.bool_,
+    "alive_at_loop": np.bool_, "stance": np.int8, "pending_target": np.int32, "pending_eta": np.int32,
+    "pending_hits": np.int8,
 }
 
 
 def allocate_state(batch: int, n_units: int) -> BattleState:
     """Zeroed state for ``batch`` battles of ``n_units`` slots."""
     arrays = {name: np.zeros((batch, n_units), dtype=dt) for name, dt in _FIELD_DTYPES.items()}
-    for name in ("order_target", "target", "attacker", "fired_at"):
+    for name in ("order_target", "target", "attacker", "fired_at", "pending_target"):
         arrays[name][:] = NO_UNIT
     return BattleState(**arrays, loop=np.zeros(batch, dtype=np.int64), rng=np.zeros(batch, dtype=np.uint64))
 

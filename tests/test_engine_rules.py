@@ -1,0 +1,136 @@
+"""Pushing, missiles and the zealot's second blade, against situations worked by hand from StarCraft II's rules
+(docs/engine_rules.md cites each rule: sections 1 and 2).
+
+Speeds per game loop: marine and zealot 2.25 / 16 = 0.140625. Without SC2's random weapon delay (``engine_with``).
+"""
+
+from __future__ import annotations
+
+import pytest
+from engine_helpers import engine_with
+
+from smac_hard_gym.engine import CMD_ATTACK, CMD_HOLD, CMD_MOVE
+
+STEP = 0.140625
+
+
+def _order(engine, slot: int, kind: int, target: int = -1, point: tuple[float, float] = (0.0, 0.0)) -> None:
+    engine.commands.kind[0, slot] = kind
+    engine.commands.target[0, slot] = target
+    engine.commands.x[0, slot], engine.commands.y[0, slot] = point
+
+
+def _run(engine, loops: int) -> None:
+    """The orders given so far, then ``loops`` game loops with no new command (orders persist)."""
+    engine.step(n_loops=loops)
+    engine.commands.clear()
+
+
+# --- Pushing (section 1). Every SMAC unit has push priority 10: enemies neither push nor are pushed.
+
+
+def test_a_walker_does_not_push_an_enemy_it_walks_into():
+    # A zealot (r 0.5) walks east into an idle marine (r 0.375) 2 away: it touches at 15.125 (centre distance 0.875)
+    # after 8 loops and is put back there every loop after; the marine never moves.
+    engine = engine_with(["Marine_RL"], ["Zealot"], {0: (16.0, 16.0), 1: (14.0, 16.0)})
+    _order(engine, 1, CMD_MOVE, point=(20.0, 16.0))
+    _run(engine, 24)
+    st = engine.state
+    assert (st.x[0, 0], st.y[0, 0]) == (16.0, 16.0)
+    assert st.x[0, 1] == pytest.approx(15.125) and st.y[0, 1] == pytest.approx(16.0)
+
+
+def test_own_units_standing_to_fire_are_not_pushed_by_a_walker():
+    # Marine A fires at a medivac 4 away (in range 5 + radii); marine B walks from 8 toward 13 behind it. B touches
+    # A (radii 0.75) at 9.25 and stays there; A does not move. (A is not idle, so B does not arrive by bumping.)
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Medivac"], {0: (10.0, 16.0), 1: (8.0, 16.0), 2: (14.0, 16.0)})
+    _order(engine, 0, CMD_ATTACK, target=2)
+    _order(engine, 1, CMD_MOVE, point=(13.0, 16.0))
+    _run(engine, 24)
+    st = engine.state
+    assert st.x[0, 0] == pytest.approx(10.0)
+    assert st.x[0, 1] == pytest.approx(9.25)
+    assert st.health[0, 2] < 150.0  # A kept firing
+
+
+def test_a_walker_shoves_an_idle_own_unit_sharing_the_overlap():
+    # As above with A idle and B walking to a point far beyond (no group arrival): B overlaps A by 0.015625 in loop
+    # 9 (each moves half), then by one step a loop, so both advance half a step a loop for the 15 loops after.
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Medivac"], {0: (10.0, 16.0), 1: (8.0, 16.0), 2: (14.0, 4.0)})
+    _order(engine, 1, CMD_MOVE, point=(30.0, 16.0))
+    _run(engine, 24)
+    st = engine.state
+    assert st.x[0, 0] == pytest.approx(10.0 + 0.015625 / 2 + 15 * STEP / 2)  # 11.0625
+    assert st.x[0, 1] == pytest.approx(8.0 + 9 * STEP - 0.015625 / 2 + 15 * STEP / 2)  # 10.3125
+
+
+def test_a_unit_on_hold_is_not_pushed():
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Medivac"], {0: (10.0, 16.0), 1: (8.0, 16.0), 2: (14.0, 4.0)})
+    _order(engine, 0, CMD_HOLD)
+    _order(engine, 1, CMD_MOVE, point=(13.0, 16.0))
+    _run(engine, 24)
+    assert engine.state.x[0, 0] == 10.0 and engine.state.x[0, 1] == pytest.approx(9.25)
+
+
+# --- Missiles (section 2): the stalker's, hydralisk's and marauder's shots fly; they home, never miss, and land
+# even if the shooter has died.
+
+
+def test_a_hydralisk_spine_lands_after_its_flight():
+    # Hydralisk (r 0.625) 4 from a zealot (r 0.5) on hold: in range 5 + radii, fires in loop 0. 40 per second =
+    # 2.5 a loop: ceil(4 / 2.5) = 2 loops, so the 12 damage lands in loop 2 (on the shield).
+    engine = engine_with(["Hydralisk_RL"], ["Zealot"], {0: (10.0, 16.0), 1: (14.0, 16.0)})
+    _order(engine, 1, CMD_HOLD)
+    _order(engine, 0, CMD_ATTACK, target=1)
+    shields = []
+    for _ in range(4):
+        _run(engine, 1)
+        shields.append(float(engine.state.shield[0, 1]))
+    assert shields == [50.0, 50.0, 38.0, 38.0]
+
+
+def test_a_missile_lands_after_its_shooter_died():
+    # A stalker fires at a marine 5 away in loop 0 (flight ceil(5 / 1.171875) = 5 loops) and is killed in loop 1.
+    engine = engine_with(["Marine_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
+    _run(engine, 1)
+    engine.place(0, 1, alive=False, health=0.0)
+    _run(engine, 3)
+    assert engine.state.health[0, 0] == 45.0
+    _run(engine, 2)
+    assert engine.state.health[0, 0] == pytest.approx(45.0 - 13.0)
+
+
+def test_a_missile_at_a_unit_that_died_in_flight_hits_nobody():
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (10.0, 12.0), 2: (15.0, 16.0)})
+    _order(engine, 2, CMD_ATTACK, target=0)
+    _run(engine, 1)
+    engine.place(0, 0, alive=False, health=0.0)
+    _run(engine, 8)
+    assert engine.state.health[0, 1] == 45.0 and engine.state.health[0, 0] == 0.0
+
+
+# --- The zealot's second blade (section 2): PsiBladesBurst deals its second hit 0.28 s (5 loops) after the
+# first, only within 2.1 of the zealot (validator ZealotAttackDamageMaxRange; centre to centre is a guess).
+
+
+@pytest.mark.parametrize(("marine_x", "second_lands"), [(12.5, True), (13.0, False)])
+def test_the_second_blade_needs_the_target_within_reach(marine_x, second_lands):
+    # The zealot hits a marine (edge distance 0.025) in loop 0; the marine is then moved away. The zealot chases
+    # 5 steps (10.703125 at loop 5): centre distance 1.797 <= 2.1 lands the second blade, 2.297 does not.
+    engine = engine_with(["Marine_RL"], ["Zealot"], {0: (10.9, 16.0), 1: (10.0, 16.0)})
+    _order(engine, 1, CMD_ATTACK, target=0)
+    _run(engine, 1)
+    assert engine.state.health[0, 0] == pytest.approx(37.0)
+    engine.place(0, 0, x=marine_x)
+    _run(engine, 5)
+    assert engine.state.x[0, 1] == pytest.approx(10.0 + 5 * STEP)
+    assert engine.state.health[0, 0] == pytest.approx(29.0 if second_lands else 37.0)
+
+
+def test_the_second_blade_is_lost_if_the_zealot_dies():
+    engine = engine_with(["Marine_RL"], ["Zealot"], {0: (10.9, 16.0), 1: (10.0, 16.0)})
+    _order(engine, 1, CMD_ATTACK, target=0)
+    _run(engine, 1)
+    engine.place(0, 1, alive=False, health=0.0)
+    _run(engine, 8)
+    assert engine.state.health[0, 0] == pytest.approx(37.0)
