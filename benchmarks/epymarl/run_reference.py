@@ -13,6 +13,7 @@ Layout of ``--out`` (one folder per job)::
                                          observer EPyMARL itself adds under <epymarl>/results/sacred)
         logs/<n>.log                     stdout+stderr of the n-th start
         pid                              pid of the running EPyMARL process
+        engine.json                      fingerprint of the smac-hard-gym code the job started on
         done.json                        written when EPyMARL finished training (the job is then skipped)
 
 Resume: re-run the same command. For each unfinished job the newest loadable checkpoint is passed as EPyMARL's
@@ -20,6 +21,14 @@ Resume: re-run the same command. For each unfinished job the newest loadable che
 checkpoint's step. It does NOT restore the replay buffer, the reward-standardisation statistics, the target
 networks (they are set equal to the loaded networks) or the RNG state: a resumed run refills its buffer and is not
 bit-identical to an uninterrupted one. Steps run after the last checkpoint are lost (at most --save-interval).
+
+A job resumes only on the engine it started on: ``engine.json`` holds a sha256 over the smac-hard-gym code the job
+imports (engine, unit table, SMAC layer, envs, opponents, maps). If that code has changed, the job is not resumed
+(a run half on one engine and half on another measures neither); ``--restart-changed`` moves its folder aside
+(``seed<n>.engine-<old fingerprint>``) and starts it again. To keep editing the code while runs go, install a fixed
+commit of smac-hard-gym (not editable) in the environment that runs them.
+A job whose EPyMARL process finished while no orchestrator was watching is marked done from sacred's own record
+(``run.json`` status ``COMPLETED``).
 """
 
 from __future__ import annotations
@@ -198,6 +207,60 @@ def provenance(epymarl: Path) -> str:
     return f"smac-hard-gym {rev(REPO)}; EPyMARL {rev(epymarl)}"
 
 
+# what decides a reference run's games: the engine, the unit table, the SMAC layer, the envs, the opponents, the maps
+_FINGERPRINT_PACKAGES = ("smac_hard_gym.engine", "smac_hard_gym.smac", "smac_hard_gym.envs",
+                         "smac_hard_gym.opponents", "smac_hard_gym.maps")
+_FINGERPRINT_MODULES = ("smac_hard_gym.units", "smac_hard_gym.backend")
+
+
+def engine_fingerprint() -> str:
+    """sha256 (first 16 hex digits) over the source and map files of the smac-hard-gym the jobs import.
+
+    Computed in a child with the jobs' environment, so it describes the code EPyMARL will import, not the code this
+    script happens to see."""
+    probe = (
+        "import hashlib, importlib, pathlib\n"
+        f"packages, modules = {_FINGERPRINT_PACKAGES!r}, {_FINGERPRINT_MODULES!r}\n"
+        "files = set()\n"
+        "for name in packages:\n"
+        "    for root in importlib.import_module(name).__path__:\n"
+        "        files |= {p for p in pathlib.Path(root).rglob('*') if p.suffix in ('.py', '.json')}\n"
+        "files |= {pathlib.Path(importlib.import_module(name).__file__) for name in modules}\n"
+        "h = hashlib.sha256()\n"
+        "for p in sorted(files, key=lambda p: (p.name, str(p))):\n"
+        "    if '__pycache__' not in p.parts:\n"
+        "        h.update(p.name.encode()); h.update(p.read_bytes())\n"
+        "print(h.hexdigest()[:16])\n")
+    out = subprocess.run([sys.executable, "-c", probe], env=job_env(), capture_output=True, text=True, check=True)
+    return out.stdout.strip()
+
+
+def started_on(job_dir: Path) -> str | None:
+    """The engine fingerprint a job started on (None: not recorded, e.g. a job from before fingerprints)."""
+    try:
+        return json.loads((job_dir / "engine.json").read_text())["fingerprint"]
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def sacred_completed(job_dir: Path) -> bool:
+    """sacred recorded a completed run in the job's newest start (EPyMARL reached t_max and exited cleanly)."""
+    runs = sorted(job_dir.glob("sacred/*/*/run.json"), key=lambda p: (int(p.parts[-3]), p.stat().st_mtime))
+    if not runs:
+        return False
+    try:
+        return json.loads(runs[-1].read_text()).get("status") == "COMPLETED"
+    except (OSError, ValueError):
+        return False
+
+
+def mark_done(job_dir: Path, t_max: int, how: str) -> None:
+    ckpts = checkpoints(job_dir, job_dir.parts[-3])
+    (job_dir / "done.json").write_text(json.dumps(
+        {"finished": dt.datetime.now().isoformat(timespec="seconds"), "t_max": t_max, "how": how,
+         "last_checkpoint_t_env": ckpts[-1][0] if ckpts else None}, indent=1) + "\n")
+
+
 def _nice() -> None:
     os.nice(max(0, 19 - os.nice(0)))
 
@@ -217,10 +280,7 @@ class Pool:
         job_dir = job.dir(self.args.out)
         text = (job_dir / "logs" / f"{next_index(job_dir) - 1}.log").read_text(errors="replace")
         if rc in (0, None) and "Finished Training" in text:
-            ckpts = checkpoints(job_dir, job.algo)
-            (job_dir / "done.json").write_text(json.dumps(
-                {"finished": dt.datetime.now().isoformat(timespec="seconds"), "t_max": self.args.t_max,
-                 "last_checkpoint_t_env": ckpts[-1][0] if ckpts else None}, indent=1) + "\n")
+            mark_done(job_dir, self.args.t_max, "log: Finished Training")
             log(f"done  {job.name}")
         else:
             log(f"FAILED {job.name} (exit {rc}); see its log. It is retried on the next launch.")
@@ -230,6 +290,8 @@ class Pool:
         job_dir = job.dir(self.args.out)
         (job_dir / "logs").mkdir(parents=True, exist_ok=True)
         resume = latest_checkpoint(job_dir, job.algo)
+        if resume is None:  # a fresh start records its engine (a job from before fingerprints resumes unrecorded)
+            (job_dir / "engine.json").write_text(json.dumps({"fingerprint": self.args.fingerprint}) + "\n")
         n = next_index(job_dir)
         cmd = command(job, job_dir, self.args, resume, n)
         logf = open(job_dir / "logs" / f"{n}.log", "w")  # noqa: SIM115 - closed when the job ends
@@ -290,6 +352,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="extra sacred config update passed to every job (repeatable), e.g. test_interval=10000")
     p.add_argument("--poll", type=float, default=20.0, help="seconds between checks (default 20)")
+    p.add_argument("--restart-changed", action="store_true",
+                   help="start again (old folder moved aside) the jobs begun on a different smac-hard-gym engine")
     p.add_argument("--dry-run", action="store_true", help="print each job's state and command, start nothing")
     args = p.parse_args(argv)
     args.out = args.out.expanduser().resolve()
@@ -303,12 +367,25 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [Job(a, m, int(s)) for a in args.algos.split(",") for s in args.seeds.split(",")
             for m in args.maps.split(",")]
 
+    args.fingerprint = engine_fingerprint()
+    log(f"smac-hard-gym engine fingerprint {args.fingerprint}")
     pending, adopted = [], {}
     for job in jobs:
         d = job.dir(args.out)
-        ck = checkpoints(d, job.algo)
+        pid = pid_alive(d)
+        if not pid and not (d / "done.json").is_file() and sacred_completed(d):
+            mark_done(d, args.t_max, "sacred run.json: COMPLETED")
         done = (d / "done.json").is_file()
-        pid = None if done else pid_alive(d)
+        ck = checkpoints(d, job.algo)
+        began = started_on(d)
+        if ck and not done and not pid and began not in (None, args.fingerprint):
+            if args.restart_changed and not args.dry_run:
+                d.rename(d.with_name(f"{d.name}.engine-{began}"))
+                ck = []
+            else:
+                log(f"{job.name:32s} begun on engine {began}, now {args.fingerprint}: not resumed "
+                    f"(--restart-changed starts it again)")
+                continue
         state = ("done" if done else f"running (pid {pid}, left by an earlier launch)" if pid else
                  f"resume at t_env={ck[-1][0]}" if ck else "new")
         log(f"{job.name:32s} {state}")
