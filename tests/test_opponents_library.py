@@ -116,14 +116,13 @@ def test_generic_scripts_beat_a_side_that_only_stops():
 # Behaviour in constructed battles.
 
 
-def _first_death(battle: Battle, slots: slice, limit: int = 120) -> int:
-    """Step until a unit in ``slots`` dies; return its slot."""
+def _first_death(battle: Battle, slots: slice, limit: int = 120) -> set[int]:
+    """Step until a unit in ``slots`` dies; return the slots of those that died in that step."""
     for _ in range(limit):
         battle.step()
         dead = np.flatnonzero(~battle.state.alive[0, slots])
         if dead.size:
-            assert dead.size == 1
-            return int(slots.start + dead[0])
+            return {int(slots.start + d) for d in dead}
     raise AssertionError("nobody died")
 
 
@@ -138,9 +137,9 @@ def _weak_far_marine(blue: str) -> Battle:
 
 
 def test_weakest_kills_the_lowest_health_unit_first():
-    assert _first_death(_weak_far_marine("weakest"), slice(0, 3)) == 2
-    # Sanity check of the scenario: attacking the nearest kills one of the close, healthy marines first.
-    assert _first_death(_weak_far_marine("nearest"), slice(0, 3)) in (0, 1)
+    assert _first_death(_weak_far_marine("weakest"), slice(0, 3)) == {2}
+    # Sanity check of the scenario: attacking the nearest kills the close, healthy marines first.
+    assert _first_death(_weak_far_marine("nearest"), slice(0, 3)) <= {0, 1}
 
 
 def _time_in_zealot_reach(red: str, steps: int = 40) -> int:
