@@ -213,11 +213,11 @@ _FINGERPRINT_PACKAGES = ("smac_hard_gym.engine", "smac_hard_gym.smac", "smac_har
 _FINGERPRINT_MODULES = ("smac_hard_gym.units", "smac_hard_gym.backend")
 
 
-def engine_fingerprint() -> str:
+def engine_fingerprint(cwd: Path) -> str:
     """sha256 (first 16 hex digits) over the source and map files of the smac-hard-gym the jobs import.
 
-    Computed in a child with the jobs' environment, so it describes the code EPyMARL will import, not the code this
-    script happens to see."""
+    Computed in a child with the jobs' environment and working folder (``cwd``, the EPyMARL checkout), so it
+    describes the code EPyMARL will import, not the code this script happens to see."""
     probe = (
         "import hashlib, importlib, pathlib\n"
         f"packages, modules = {_FINGERPRINT_PACKAGES!r}, {_FINGERPRINT_MODULES!r}\n"
@@ -231,7 +231,9 @@ def engine_fingerprint() -> str:
         "    if '__pycache__' not in p.parts:\n"
         "        h.update(p.name.encode()); h.update(p.read_bytes())\n"
         "print(h.hexdigest()[:16])\n")
-    out = subprocess.run([sys.executable, "-c", probe], env=job_env(), capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", probe], env=job_env(), cwd=cwd, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise SystemExit(f"cannot import smac-hard-gym as the jobs would:\n{out.stderr[-2000:]}")
     return out.stdout.strip()
 
 
@@ -367,7 +369,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [Job(a, m, int(s)) for a in args.algos.split(",") for s in args.seeds.split(",")
             for m in args.maps.split(",")]
 
-    args.fingerprint = engine_fingerprint()
+    args.fingerprint = engine_fingerprint(args.epymarl)
     log(f"smac-hard-gym engine fingerprint {args.fingerprint}")
     pending, adopted = [], {}
     for job in jobs:
