@@ -79,7 +79,7 @@ from smac_hard_gym.smac.features import (
     SideFeatures,
     SmacOptions,
 )
-from smac_hard_gym.smac.kernels import bind, check_decode_batch, finish_encode
+from smac_hard_gym.smac.kernels import Counters, StepInputs, StepOutcome, check_decode_batch, finish_encode
 from smac_hard_gym.units import STATS, WEAPON_HEAL, S
 
 __all__ = ["TwoPlayerCore", "StepResult", "MODES", "SELF_PLAY_NAME", "RED", "BLUE"]
@@ -204,12 +204,9 @@ class TwoPlayerCore:
             SideFeatures(self.spec, RED, self.options), SideFeatures(self.spec, BLUE, self.options))
         self.rewards = RewardFunction(*self.features, self.options)
         self.n_red, self.n_blue = self.features[RED].n_agents, self.features[BLUE].n_agents
-        utype = self.features[RED].utype
-        # The way up's constants: red's features, the reward options, the outcome rule and the limit, by name.
-        self._up_args = bind(finish_encode, {
-            **self.features[RED].constants, **self.rewards.constants,
-            "fighter": STATS[utype, S["weapon"]] != WEAPON_HEAL, "n_red": self.n_red,
-            "step_limit": self.episode_limit})
+        # The way up's rules: a side is beaten when no unit of it that fights is alive; the reward options; the limit.
+        self._rules = self.rewards.rules(STATS[self.features[RED].utype, S["weapon"]] != WEAPON_HEAL,
+                                         self.episode_limit)
 
         self.opponent: Script | None = None
         if mode == "script":
@@ -256,6 +253,7 @@ class TwoPlayerCore:
         self._no_restarts = np.zeros(b, dtype=bool)
         self._no_actions = np.zeros((0, self.n_blue), dtype=np.int64)  # blue's actions when a script plays it
         self._no_red_actions = np.zeros((0, self.n_red), dtype=np.int64)  # red's, when red_script plays it
+        self._counters = Counters(self.episode_step, self.done, *self.last_action)  # the way up updates them
         # The way up, and each side's way down, called past numba's dispatcher once compiled.
         self._finish_encode = _DirectKernel(finish_encode)
         self._check_decode = (_DirectKernel(check_decode_batch), _DirectKernel(check_decode_batch))
@@ -370,13 +368,14 @@ class TwoPlayerCore:
         terminated, truncated = np.empty(size, bool), np.empty(size, bool)
         dead_red, dead_blue = np.empty(size, np.int64), np.empty(size, np.int64)
         feats = self.features[RED]
-        avail, obs, global_state = feats.outputs(size, self.encode_state)
-        args = (prev_hs, prev_alive, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                state.cooldown, active, restarted, red, blue, self.last_action[RED], self.last_action[BLUE],
-                self.episode_step, self.done, outcome, reward, terminated, truncated, dead_red, dead_blue, avail, obs,
-                global_state, *self._up_args)
-        n_ended = self._finish_encode(_plain(red) and (blue is self._no_actions or _plain(blue)), *args)
-        global_state = feats.finish_state(obs, global_state) if self.encode_state else None
+        out = feats.outputs(size, self.encode_state)
+        avail, obs = out.avail, out.obs
+        n_ended = self._finish_encode(
+            _plain(red) and (blue is self._no_actions or _plain(blue)), feats.unit_arrays(state),
+            StepInputs(prev_hs, prev_alive, active, restarted, red, blue), self._counters,
+            StepOutcome(outcome, reward, terminated, truncated, dead_red, dead_blue), out, feats.constants,
+            feats.columns, self._rules)
+        global_state = feats.finish_state(obs, out.state) if self.encode_state else None
         self._encoded[RED] = (avail, obs, global_state)
         if n_ended:
             ended = terminated | truncated
@@ -401,10 +400,8 @@ class TwoPlayerCore:
         acts = actions if checked else validate_actions(actions, (self.batch_size, feats.n_agents), feats.n_actions,
                                                         SIDE_NAMES[side])
         avail = self.avail_actions(side)
-        state, cmd = self.backend.state, self.commands
-        args = (acts, avail, active, bool(replace), replaced, state.x, state.y, cmd.kind, cmd.target, cmd.x, cmd.y,
-                *feats.decode_args)
-        bad = self._check_decode[side](_plain(acts), *args)
+        bad = self._check_decode[side](_plain(acts), acts, avail, active, bool(replace), replaced,
+                                       feats.unit_arrays(self.backend.state), self.commands, feats.constants)
         if bad >= 0:
             raise_unavailable(feats, acts, avail, bad, hint)
         return acts

@@ -192,7 +192,7 @@ def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray |
     rows = feats.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
     if out is None:
         out = np.empty((len(rows), feats.n_agents, feats.n_actions), dtype=bool)
-    available_actions_batch(rows, state.x, state.y, state.alive, out, *feats.avail_args)
+    available_actions_batch(rows, feats.unit_arrays(state), out, feats.constants)
     return out
 
 
@@ -236,4 +236,4 @@ def decode_actions(feats: SideFeatures, state: BattleState, actions: np.ndarray,
     acts = validate_actions(actions, (batch, feats.n_agents), feats.n_actions, SIDE_NAMES[feats.side])
     anything = np.ones((batch, feats.n_agents, feats.n_actions), dtype=bool)
     check_decode_batch(acts, anything, np.ascontiguousarray(active, dtype=bool), False, np.zeros(batch, np.int64),
-                       state.x, state.y, commands.kind, commands.target, commands.x, commands.y, *feats.decode_args)
+                       feats.unit_arrays(state), commands, feats.constants)
