@@ -1,5 +1,6 @@
-"""A run's files: the learning curve (``curve.csv``, ``curve.png``) and ``summary.json`` that :func:`train` writes,
-and the run config and model read back from a run folder (``eval``, the baselines sweep, policy opponents)."""
+"""A run's files: the learning curve (``curve.csv``, ``curve.png``) and ``summary.json`` that
+:func:`~smac_hard_gym.training.loop.train` writes, and the run config and model read back from a run folder (``eval``
+and the baselines sweep)."""
 
 from __future__ import annotations
 
@@ -93,7 +94,7 @@ def plot_curve(path: Path, rows: list[dict[str, Any]], title: str) -> bool:
 
 
 def load_run_config(model_path: str | Path) -> TrainConfig | None:
-    """The :class:`TrainConfig` saved next to a model by :func:`train`, if there is one."""
+    """The :class:`TrainConfig` saved next to a model by :func:`~smac_hard_gym.training.loop.train`, if there is one."""
     path = Path(model_path).with_name("config.json")
     if not path.is_file():
         return None
@@ -112,9 +113,9 @@ def load_run_config(model_path: str | Path) -> TrainConfig | None:
 
 
 def load_model(path: str | Path) -> Any:
-    """A MaskablePPO model saved by :func:`train` (``model.zip``), on the CPU; a file that is not one raises one
-    ValueError naming it. Loading runs the pickled code the file holds (stable-baselines3's format): load only files
-    you trust."""
+    """A MaskablePPO model saved by :func:`~smac_hard_gym.training.loop.train` (``model.zip``), on the CPU; a file
+    that is not one raises one ValueError naming it. Loading runs the pickled code the file holds (stable-baselines3's
+    format): load only files you trust."""
     from sb3_contrib import MaskablePPO
 
     path = Path(path)
