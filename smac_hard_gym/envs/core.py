@@ -185,6 +185,8 @@ class TwoPlayerCore:
                  step_mul: int = 8, options: SmacOptions | None = None, seed: int | None = None,
                  backend_options: dict | None = None, opponent_isolation: str | None = None, encode_state: bool = True,
                  episode_limit: int | None = None, red_script: Any = None) -> None:
+        """See the module docstring. Keyword options, each with a default, rather than an options object: every env
+        layer passes the subset it exposes by name, and SMAC's own options already travel as one ``SmacOptions``."""
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if not isinstance(batch_size, (int, np.integer)) or isinstance(batch_size, bool) or batch_size < 1:
@@ -249,7 +251,8 @@ class TwoPlayerCore:
         self._encoded: list[tuple | None] = [None, None]  # each side's (masks, obs, state or None) of the state
         self._avail_cache: list[np.ndarray | None] = [None, None]  # its masks alone, when only they were asked for
         self._views: list[SideView | None] = [None, None]
-        self._no_replaced = np.zeros(b, dtype=np.int64)
+        self._no_replaced = np.zeros(b, dtype=np.int64)  # result.replaced without replace_invalid
+        self._reject = np.zeros(0, dtype=np.int64)  # check_decode_batch's "reject unavailable actions"
         self._no_restarts = np.zeros(b, dtype=bool)
         self._no_actions = np.zeros((0, self.n_blue), dtype=np.int64)  # blue's actions when a script plays it
         self._no_red_actions = np.zeros((0, self.n_red), dtype=np.int64)  # red's, when red_script plays it
@@ -318,8 +321,9 @@ class TwoPlayerCore:
         Actions are checked (:func:`~smac_hard_gym.smac.actions.validate_actions`, then availability in the battles
         that step). An unavailable red action raises :class:`~smac_hard_gym.smac.actions.InvalidActionError`
         (message ending with ``hint``), or with ``replace_invalid`` is replaced by the agent's first available one
-        and counted in ``result.replaced``. A rejected step changes nothing. ``checked``: red's actions are already
-        a fresh int64 array ``(B, n_red)`` of in-range values (an env layer validated them): not validated again.
+        and counted in ``result.replaced``. A rejected step changes nothing. ``checked``: the actions given (red's,
+        and blue's in self-play) are already fresh int64 arrays ``(B, n)`` of in-range values (an env layer
+        validated them): not validated again, so every API validates once.
         """
         self._check_open()
         if self._error is not None:
@@ -336,7 +340,7 @@ class TwoPlayerCore:
         commands.clear()
         replaced = np.zeros(size, dtype=np.int64) if replace_invalid else self._no_replaced
         if self.red_script is None:
-            red = self._decode(RED, red_actions, active, replace_invalid, replaced, hint, checked)
+            red = self._decode(RED, red_actions, active, replaced if replace_invalid else self._reject, hint, checked)
         elif red_actions is not None:
             raise ValueError("red is played by red_script: step() takes no red actions (pass None)")
         else:
@@ -344,7 +348,7 @@ class TwoPlayerCore:
             self._script_call(self.red_script.act, RED, commands, active)
         blue = self._no_actions
         if self.mode == "self-play":
-            blue = self._decode(BLUE, blue_actions, active, False, np.zeros(size, dtype=np.int64), "", False)
+            blue = self._decode(BLUE, blue_actions, active, self._reject, "", checked)
         if hook is not None:
             clock = self._lap(hook, "actions", clock)
         if self.opponent is not None:
@@ -393,15 +397,17 @@ class TwoPlayerCore:
             self._error = err
             raise
 
-    def _decode(self, side: int, actions: Any, active: np.ndarray, replace: bool, replaced: np.ndarray,
-                hint: str, checked: bool) -> np.ndarray:
-        """One side's actions, validated, checked against its masks and written as engine commands (one kernel)."""
+    def _decode(self, side: int, actions: Any, active: np.ndarray, replaced: np.ndarray, hint: str,
+                checked: bool) -> np.ndarray:
+        """One side's actions, validated, checked against its masks and written as engine commands (one kernel);
+        unavailable ones are replaced and counted in ``replaced`` (B,), or rejected when it is empty."""
         feats = self.features[side]
         acts = actions if checked else validate_actions(actions, (self.batch_size, feats.n_agents), feats.n_actions,
                                                         SIDE_NAMES[side])
         avail = self.avail_actions(side)
-        bad = self._check_decode[side](_plain(acts), acts, avail, active, bool(replace), replaced,
-                                       feats.unit_arrays(self.backend.state), self.commands, feats.constants)
+        state = self.backend.state
+        bad = self._check_decode[side](_plain(acts), acts, avail, active, replaced, state.x, state.y, self.commands,
+                                       feats.constants.actions)
         if bad >= 0:
             raise_unavailable(feats, acts, avail, bad, hint)
         return acts

@@ -192,7 +192,7 @@ def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray |
     rows = feats.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
     if out is None:
         out = np.empty((len(rows), feats.n_agents, feats.n_actions), dtype=bool)
-    available_actions_batch(rows, feats.unit_arrays(state), out, feats.constants)
+    available_actions_batch(rows, feats.unit_arrays(state), out, feats.constants.actions)
     return out
 
 
@@ -235,5 +235,5 @@ def decode_actions(feats: SideFeatures, state: BattleState, actions: np.ndarray,
     batch = state.alive.shape[0]
     acts = validate_actions(actions, (batch, feats.n_agents), feats.n_actions, SIDE_NAMES[feats.side])
     anything = np.ones((batch, feats.n_agents, feats.n_actions), dtype=bool)
-    check_decode_batch(acts, anything, np.ascontiguousarray(active, dtype=bool), False, np.zeros(batch, np.int64),
-                       feats.unit_arrays(state), commands, feats.constants)
+    check_decode_batch(acts, anything, np.ascontiguousarray(active, dtype=bool), np.zeros(0, np.int64), state.x,
+                       state.y, commands, feats.constants.actions)

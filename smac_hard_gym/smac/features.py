@@ -296,9 +296,10 @@ class SideFeatures:
 
         # The kernels' inputs: this side's constants, and every column from the name lists above.
         self.constants = fk.SideConstants(
-            own_lo=self.own.start, enemy_lo=self.enemy.start, healer=self.own_healer,
-            heal_target_ok=self.heal_target_ok, pathable=self.pathable, heights=self.terrain_height,
-            move_amount=self.move_amount, own_health_max=self.own_health_max, own_shield_max=self.own_shield_max,
+            actions=fk.ActionConstants(own_lo=self.own.start, enemy_lo=self.enemy.start, healer=self.own_healer,
+                                       heal_target_ok=self.heal_target_ok, pathable=self.pathable,
+                                       move_amount=self.move_amount),
+            heights=self.terrain_height, own_health_max=self.own_health_max, own_shield_max=self.own_shield_max,
             enemy_health_max=self.enemy_health_max, enemy_shield_max=self.enemy_shield_max,
             own_onehot=self.own_onehot, enemy_onehot=self.enemy_onehot, max_cooldown=self.own_max_cooldown,
             probe_dx=self._probe_dx, probe_dy=self._probe_dy, centre_x=self.center[0], centre_y=self.center[1],

@@ -7,10 +7,11 @@ made some twenty array passes and temporaries per feature block: half of a vecto
 one-battle step. Each kernel writes into caller-owned outputs.
 
 The kernels take their inputs in a few named bundles (NamedTuples of arrays and numbers, which numba passes as
-one argument each, as the engine's ``BattleState``): :class:`UnitArrays` (the unit arrays read), :class:`SideConstants`
-(one side's constants on one map), :class:`Columns` (where each feature goes, from the feature-name lists),
-:class:`Encoding` (masks, observations and state written), and for the core's way up :class:`StepInputs`,
-:class:`Counters`, :class:`StepOutcome` and :class:`StepRules`.
+one argument each, as the engine's ``BattleState``): :class:`UnitArrays` (the unit arrays read),
+:class:`SideConstants` (one side's constants on one map, with its :class:`ActionConstants`), :class:`Columns`
+(where each feature goes, from the feature-name lists), :class:`Encoding` (masks, observations and state
+written), and for the core's way up :class:`StepInputs`, :class:`Counters`, :class:`StepOutcome` and
+:class:`StepRules`.
 
 Float rounding follows the numpy formulation: ratios are computed in float64 and stored as float32, and offsets
 are scaled by float32's 1/9, as SMAC's float32 arrays do.
@@ -28,7 +29,8 @@ from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP,
 
 __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
-    "UnitArrays", "SideConstants", "Columns", "Encoding", "StepInputs", "Counters", "StepOutcome", "StepRules",
+    "UnitArrays", "ActionConstants", "SideConstants", "Columns", "Encoding", "StepInputs", "Counters", "StepOutcome",
+    "StepRules",
     "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
     "finish_encode", "first_invalid_action", "check_decode_batch",
 ]
@@ -76,15 +78,31 @@ class UnitArrays(NamedTuple):
         return cls(state.x, state.y, state.alive, state.health, state.shield, state.energy, state.cooldown)
 
 
-class SideConstants(NamedTuple):
-    """One side's constants on one map (built once by :class:`~smac_hard_gym.smac.features.SideFeatures`).
+class ActionConstants(NamedTuple):
+    """One side's constants that the action kernels (available actions, decoding) read; part of
+    :class:`SideConstants`, and passed alone to those kernels (a call unboxes every field it is given).
 
     - ``own_lo``, ``enemy_lo``: int, the first unit slot of this side's agents / of its enemies.
     - ``healer``: bool (n,), the agent heals (action 6+j heals ally j) instead of attacking.
     - ``heal_target_ok``: bool (min(n, m),), ally j may be healed (not a healer); its length is how many allies
       the heal actions address.
-    - ``pathable``: bool (X, Y) over the map's cells; ``heights``: float32 (X, Y), terrain height (SC2's byte / 255).
+    - ``pathable``: bool (X, Y) over the map's cells, walkable.
     - ``move_amount``: float, the length of a move action, in cells.
+    """
+
+    own_lo: int
+    enemy_lo: int
+    healer: np.ndarray
+    heal_target_ok: np.ndarray
+    pathable: np.ndarray
+    move_amount: float
+
+
+class SideConstants(NamedTuple):
+    """One side's constants on one map (built once by :class:`~smac_hard_gym.smac.features.SideFeatures`).
+
+    - ``actions``: the :class:`ActionConstants` (slots, healers, walkable cells, move length).
+    - ``heights``: float32 (X, Y), terrain height over the map's cells (SC2's byte / 255).
     - ``own_health_max``, ``own_shield_max``: float64 (n,), the agents' normalisers (shield: inf for a unit
       without shields, a zero column); ``enemy_health_max``, ``enemy_shield_max``: float64 (m,), the enemies'.
     - ``own_onehot``, ``enemy_onehot``: float32 (n, bits) / (m, bits), unit-type one-hots.
@@ -96,13 +114,8 @@ class SideConstants(NamedTuple):
     - ``episode_limit``: float, the divisor of the timestep columns, in env steps.
     """
 
-    own_lo: int
-    enemy_lo: int
-    healer: np.ndarray
-    heal_target_ok: np.ndarray
-    pathable: np.ndarray
+    actions: ActionConstants
     heights: np.ndarray
-    move_amount: float
     own_health_max: np.ndarray
     own_shield_max: np.ndarray
     enemy_health_max: np.ndarray
@@ -268,7 +281,8 @@ def _cell_value(grid, fx, fy, outside):
 
 @inline
 def _avail_battle(out, b, units, side):
-    """The available actions of side's agents in battle ``b`` into ``out`` (n, n_actions)."""
+    """The available actions of side's agents in battle ``b`` into ``out`` (n, n_actions); ``side``:
+    :class:`ActionConstants`."""
     x, y, alive = units.x, units.y, units.alive
     own_lo, enemy_lo, healer, heal_target_ok = side.own_lo, side.enemy_lo, side.healer, side.heal_target_ok
     half_move = side.move_amount / 2.0
@@ -302,7 +316,7 @@ def _avail_battle(out, b, units, side):
 def available_actions_batch(rows, units, out, side):
     """Write the available actions of every agent of battles ``rows`` into ``out`` (bool (len(rows), n,
     n_actions)); see smac_hard_gym.smac.actions. ``units``: :class:`UnitArrays`, ``side``:
-    :class:`SideConstants`."""
+    :class:`ActionConstants`."""
     for k in range(rows.shape[0]):
         _avail_battle(out[k], rows[k], units, side)
 
@@ -316,7 +330,7 @@ def _observe_battle(out, avail, b, units, last_action, episode_step, side, cols)
     """The observations of side's agents in battle ``b`` into ``out`` (n, obs_size), from their available actions
     ``avail`` (n, n_actions); every column from ``cols``."""
     x, y, alive, health, shield = units.x, units.y, units.alive, units.health, units.shield
-    own_lo, enemy_lo = side.own_lo, side.enemy_lo
+    own_lo, enemy_lo = side.actions.own_lo, side.actions.enemy_lo
     n, obs_size = out.shape[0], out.shape[1]
     m = side.enemy_health_max.shape[0]
     bits = side.own_onehot.shape[1]
@@ -336,13 +350,13 @@ def _observe_battle(out, avail, b, units, last_action, episode_step, side, cols)
             o[cols.move + d] = avail[i, 2 + d]
         if cols.pathing >= 0 or cols.height >= 0:
             cx0, cy0 = int(xi), int(yi)
+            probe_dx, probe_dy = side.probe_dx, side.probe_dy
             if cols.pathing >= 0:
                 for p in range(8):
-                    o[cols.pathing + p] = _cell_value(side.pathable, cx0 + side.probe_dx[p], cy0 + side.probe_dy[p],
-                                                      True)
+                    o[cols.pathing + p] = _cell_value(side.actions.pathable, cx0 + probe_dx[p], cy0 + probe_dy[p], True)
             if cols.height >= 0:
                 for p in range(9):
-                    o[cols.height + p] = _cell_value(side.heights, cx0 + side.probe_dx[p], cy0 + side.probe_dy[p],
+                    o[cols.height + p] = _cell_value(side.heights, cx0 + probe_dx[p], cy0 + probe_dy[p],
                                                      np.float32(1.0))
 
         # Enemies within sight.
@@ -426,7 +440,7 @@ def observations_batch(rows, units, avail, last_action, episode_step, out, side,
 def _state_battle(o, b, units, last_action, episode_step, side, cols):
     """The global state of battle ``b`` from side's point of view into ``o`` (state_size,)."""
     x, y, alive, health, shield = units.x, units.y, units.alive, units.health, units.shield
-    own_lo, enemy_lo = side.own_lo, side.enemy_lo
+    own_lo, enemy_lo = side.actions.own_lo, side.actions.enemy_lo
     size = o.shape[0]
     n, m = side.own_health_max.shape[0], side.enemy_health_max.shape[0]
     n_actions = N_ACTIONS_NO_ATTACK + m
@@ -441,7 +455,7 @@ def _state_battle(o, b, units, last_action, episode_step, side, cols):
         c = i * cols.state_ally_feats
         o[c + cols.state_ally_health] = health[b, u] / side.own_health_max[i]
         # Medivacs report energy, every other unit its weapon cooldown (loops until it may fire again).
-        timer = units.energy[b, u] if side.healer[i] else max(units.cooldown[b, u], 0.0)
+        timer = units.energy[b, u] if side.actions.healer[i] else max(units.cooldown[b, u], 0.0)
         o[c + cols.state_ally_cooldown] = timer / side.max_cooldown[i]
         o[c + cols.state_ally_rel_x] = (x[b, u] - cx) / width
         o[c + cols.state_ally_rel_y] = (y[b, u] - cy) / height
@@ -481,7 +495,7 @@ def global_state_batch(rows, units, last_action, episode_step, out, side, cols):
 def _encode_battle(k, b, units, last_action, episode_step, out, side, cols):
     """Row k of the :class:`Encoding` ``out``: battle b's masks, observations and (when ``out.state`` has rows)
     global state."""
-    _avail_battle(out.avail[k], b, units, side)
+    _avail_battle(out.avail[k], b, units, side.actions)
     _observe_battle(out.obs[k], out.avail[k], b, units, last_action, episode_step, side, cols)
     if out.state.shape[0] > 0:
         _state_battle(out.state[k], b, units, last_action, episode_step, side, cols)
@@ -627,26 +641,27 @@ def first_invalid_action(actions, avail, active):
 
 
 @kernel
-def check_decode_batch(actions, avail, active, replace, replaced, units, commands, side):
+def check_decode_batch(actions, avail, active, replaced, x, y, commands, side):
     """The way down of a core step for one side: check in-range ``actions`` (B, n) against ``avail``, then write
     their engine commands (into ``commands``, the engine's :class:`~smac_hard_gym.engine.state.Commands`) for active
-    battles; ``units``: :class:`UnitArrays`, ``side``: :class:`SideConstants`.
+    battles; ``x``, ``y`` are the units' positions (B, U), ``side`` the :class:`ActionConstants`.
 
-    An unavailable action in an active battle is, with ``replace``, replaced in ``actions`` by the agent's first
-    available one (no-op for a dead agent, stop for a living one) and counted in ``replaced`` (B,); without it,
-    nothing is written and the flat index (battle * n + agent) of the first one is returned. Returns -1 once the
-    commands are written.
+    With ``replaced`` int64 (B,), an unavailable action in an active battle is replaced in ``actions`` by the
+    agent's first available one (no-op for a dead agent, stop for a living one) and counted there; with an empty
+    ``replaced`` (0,), nothing is written and the flat index (battle * n + agent) of the first one is returned.
+    Returns -1 once the commands are written.
     """
     n_battles, n = actions.shape
-    x, y, own_lo, enemy_lo, healer, move_amount = units.x, units.y, side.own_lo, side.enemy_lo, side.healer, \
-        side.move_amount
+    own_lo, enemy_lo, healer, move_amount = side.own_lo, side.enemy_lo, side.healer, side.move_amount
     kind, target, cmd_x, cmd_y = commands.kind, commands.target, commands.x, commands.y
+    replace = replaced.shape[0] > 0
     if not replace:
         bad = _first_invalid(actions, avail, active)
         if bad >= 0:
             return bad
     for b in range(n_battles):
-        replaced[b] = 0
+        if replace:
+            replaced[b] = 0
         if not active[b]:
             continue
         for i in range(n):
