@@ -481,6 +481,8 @@ class RewardFunction:
         opt = self.options
         return fk.StepRules(
             fighter=np.ascontiguousarray(fighter, dtype=bool), n_red=int(self.n_red), step_limit=int(step_limit),
-            death_value=float(opt.reward_death_value), win=float(opt.reward_win), defeat=float(opt.reward_defeat),
-            negative_scale=float(opt.reward_negative_scale), sparse=bool(opt.reward_sparse),
-            only_positive=bool(opt.reward_only_positive), divisor=self.divisor)
+            reward=fk.RewardOptions(
+                death_value=float(opt.reward_death_value), win=float(opt.reward_win),
+                defeat=float(opt.reward_defeat), negative_scale=float(opt.reward_negative_scale),
+                sparse=bool(opt.reward_sparse), only_positive=bool(opt.reward_only_positive)),
+            divisor=self.divisor)

@@ -30,7 +30,7 @@ from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP,
 __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
     "UnitArrays", "ActionConstants", "SideConstants", "Columns", "Encoding", "StepInputs", "Counters", "StepOutcome",
-    "StepRules",
+    "RewardOptions", "StepRules",
     "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
     "finish_encode", "first_invalid_action", "check_decode_batch",
 ]
@@ -239,22 +239,28 @@ class StepOutcome(NamedTuple):
     dead_blue: np.ndarray
 
 
-class StepRules(NamedTuple):
-    """How a step ends and pays, fixed per core: ``fighter`` bool (U,), the slot can win a battle (a side whose
-    fighters are all dead is beaten: SMAC's "only medivacs left" rule); ``n_red`` int, red's slots come first;
-    ``step_limit`` int, the env steps after which an episode is truncated; SMAC's reward options
-    ``death_value``, ``win``, ``defeat``, ``negative_scale`` (float) and ``sparse``, ``only_positive`` (bool);
-    ``divisor`` float64 (2,), each side's reward scale."""
+class RewardOptions(NamedTuple):
+    """SMAC's reward options as the kernels read them (numbers only): ``death_value``, ``win``, ``defeat``,
+    ``negative_scale`` float (reward points), ``sparse``, ``only_positive`` bool."""
 
-    fighter: np.ndarray
-    n_red: int
-    step_limit: int
     death_value: float
     win: float
     defeat: float
     negative_scale: float
     sparse: bool
     only_positive: bool
+
+
+class StepRules(NamedTuple):
+    """How a step ends and pays, fixed per core: ``fighter`` bool (U,), the slot can win a battle (a side whose
+    fighters are all dead is beaten: SMAC's "only medivacs left" rule); ``n_red`` int, red's slots come first;
+    ``step_limit`` int, the env steps after which an episode is truncated; ``reward``, the
+    :class:`RewardOptions`; ``divisor`` float64 (2,), each side's reward scale."""
+
+    fighter: np.ndarray
+    n_red: int
+    step_limit: int
+    reward: RewardOptions
     divisor: np.ndarray
 
 
@@ -280,36 +286,43 @@ def _cell_value(grid, fx, fy, outside):
 
 
 @inline
-def _avail_battle(out, b, units, side):
-    """The available actions of side's agents in battle ``b`` into ``out`` (n, n_actions); ``side``:
-    :class:`ActionConstants`."""
+def _avail_rows(rows, units, side, out):
+    """The available actions of side's agents in battles ``rows`` into ``out`` (len(rows), n, n_actions); ``side``:
+    :class:`ActionConstants`.
+
+    Every helper here reads the bundles' arrays once per call and loops over the battles itself: each read of an
+    array out of a bundle (and each bundle passed on) costs reference counting, which per battle cost a third of
+    the kernel's time.
+    """
     x, y, alive = units.x, units.y, units.alive
     own_lo, enemy_lo, healer, heal_target_ok = side.own_lo, side.enemy_lo, side.healer, side.heal_target_ok
-    half_move = side.move_amount / 2.0
-    n = out.shape[0]
-    m = out.shape[1] - N_ACTIONS_NO_ATTACK
-    for i in range(n):
-        u = own_lo + i
-        live = alive[b, u]
-        row = out[i]
-        row[0] = not live
-        row[1] = live
-        xi, yi = x[b, u], y[b, u]
-        for d in range(4):
-            row[2 + d] = live and _cell_value(side.pathable, xi + _MOVE_DX[d] * half_move,
-                                              yi + _MOVE_DY[d] * half_move, False)
-        if healer[i]:
-            for j in range(m):
-                row[N_ACTIONS_NO_ATTACK + j] = False
-            for j in range(heal_target_ok.shape[0]):
-                v = own_lo + j
-                row[N_ACTIONS_NO_ATTACK + j] = (live and alive[b, v] and heal_target_ok[j]
-                                                and _distance(xi, yi, x[b, v], y[b, v]) <= SHOOT_RANGE)
-        else:
-            for j in range(m):
-                e = enemy_lo + j
-                row[N_ACTIONS_NO_ATTACK + j] = (live and alive[b, e]
-                                                and _distance(xi, yi, x[b, e], y[b, e]) <= SHOOT_RANGE)
+    pathable, half_move = side.pathable, side.move_amount / 2.0
+    n = out.shape[1]
+    m = out.shape[2] - N_ACTIONS_NO_ATTACK
+    for k in range(rows.shape[0]):
+        b = rows[k]
+        for i in range(n):
+            u = own_lo + i
+            live = alive[b, u]
+            row = out[k, i]
+            row[0] = not live
+            row[1] = live
+            xi, yi = x[b, u], y[b, u]
+            for d in range(4):
+                row[2 + d] = live and _cell_value(pathable, xi + _MOVE_DX[d] * half_move, yi + _MOVE_DY[d] * half_move,
+                                                  False)
+            if healer[i]:
+                for j in range(m):
+                    row[N_ACTIONS_NO_ATTACK + j] = False
+                for j in range(heal_target_ok.shape[0]):
+                    v = own_lo + j
+                    row[N_ACTIONS_NO_ATTACK + j] = (live and alive[b, v] and heal_target_ok[j]
+                                                    and _distance(xi, yi, x[b, v], y[b, v]) <= SHOOT_RANGE)
+            else:
+                for j in range(m):
+                    e = enemy_lo + j
+                    row[N_ACTIONS_NO_ATTACK + j] = (live and alive[b, e]
+                                                    and _distance(xi, yi, x[b, e], y[b, e]) <= SHOOT_RANGE)
 
 
 @kernel
@@ -317,8 +330,7 @@ def available_actions_batch(rows, units, out, side):
     """Write the available actions of every agent of battles ``rows`` into ``out`` (bool (len(rows), n,
     n_actions)); see smac_hard_gym.smac.actions. ``units``: :class:`UnitArrays`, ``side``:
     :class:`ActionConstants`."""
-    for k in range(rows.shape[0]):
-        _avail_battle(out[k], rows[k], units, side)
+    _avail_rows(rows, units, side, out)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -326,97 +338,102 @@ def available_actions_batch(rows, units, out, side):
 
 
 @inline
-def _observe_battle(out, avail, b, units, last_action, episode_step, side, cols):
-    """The observations of side's agents in battle ``b`` into ``out`` (n, obs_size), from their available actions
-    ``avail`` (n, n_actions); every column from ``cols``."""
+def _observe_rows(rows, units, avail, last_action, episode_step, side, cols, out):
+    """The observations of side's agents in battles ``rows`` into ``out`` (len(rows), n, obs_size), from their
+    available actions ``avail`` (len(rows), n, n_actions); every column from ``cols``."""
     x, y, alive, health, shield = units.x, units.y, units.alive, units.health, units.shield
-    own_lo, enemy_lo = side.actions.own_lo, side.actions.enemy_lo
-    n, obs_size = out.shape[0], out.shape[1]
-    m = side.enemy_health_max.shape[0]
-    bits = side.own_onehot.shape[1]
-    for i in range(n):
-        o = out[i]
-        for c in range(obs_size):
-            o[c] = 0.0
-        if cols.own_timestep >= 0:
-            o[cols.own_offset + cols.own_timestep] = episode_step[b] / side.episode_limit
-        u = own_lo + i
-        if not alive[b, u]:
-            continue
-        xi, yi = x[b, u], y[b, u]
-
-        # Move block: the four move actions, then the probed pathing and heights.
-        for d in range(4):
-            o[cols.move + d] = avail[i, 2 + d]
-        if cols.pathing >= 0 or cols.height >= 0:
-            cx0, cy0 = int(xi), int(yi)
-            probe_dx, probe_dy = side.probe_dx, side.probe_dy
-            if cols.pathing >= 0:
-                for p in range(8):
-                    o[cols.pathing + p] = _cell_value(side.actions.pathable, cx0 + probe_dx[p], cy0 + probe_dy[p], True)
-            if cols.height >= 0:
-                for p in range(9):
-                    o[cols.height + p] = _cell_value(side.heights, cx0 + probe_dx[p], cy0 + probe_dy[p],
-                                                     np.float32(1.0))
-
-        # Enemies within sight.
-        for j in range(m):
-            e = enemy_lo + j
-            if not alive[b, e]:
+    own_lo, enemy_lo, pathable, heights = side.actions.own_lo, side.actions.enemy_lo, side.actions.pathable, \
+        side.heights
+    own_health_max, own_shield_max, own_onehot = side.own_health_max, side.own_shield_max, side.own_onehot
+    enemy_health_max, enemy_shield_max, enemy_onehot = side.enemy_health_max, side.enemy_shield_max, \
+        side.enemy_onehot
+    probe_dx, probe_dy = side.probe_dx, side.probe_dy
+    n, obs_size = out.shape[1], out.shape[2]
+    m = enemy_health_max.shape[0]
+    bits = own_onehot.shape[1]
+    for k in range(rows.shape[0]):
+        b = rows[k]
+        for i in range(n):
+            o = out[k, i]
+            for c in range(obs_size):
+                o[c] = 0.0
+            if cols.own_timestep >= 0:
+                o[cols.own_offset + cols.own_timestep] = episode_step[b] / side.episode_limit
+            u = own_lo + i
+            if not alive[b, u]:
                 continue
-            dx, dy = x[b, e] - xi, y[b, e] - yi
-            d = math.sqrt(dx * dx + dy * dy)
-            if not d < SIGHT_RANGE:
-                continue
-            c = cols.enemy_offset + j * cols.enemy_feats
-            o[c + cols.enemy_attackable] = avail[i, N_ACTIONS_NO_ATTACK + j]
-            o[c + cols.enemy_distance] = d * _SIGHT_SCALE
-            o[c + cols.enemy_rel_x] = dx * _SIGHT_SCALE
-            o[c + cols.enemy_rel_y] = dy * _SIGHT_SCALE
-            if cols.enemy_health >= 0:
-                o[c + cols.enemy_health] = health[b, e] / side.enemy_health_max[j]
-            if cols.enemy_shield >= 0:
-                o[c + cols.enemy_shield] = shield[b, e] / side.enemy_shield_max[j]
+            xi, yi = x[b, u], y[b, u]
+
+            # Move block: the four move actions, then the probed pathing and heights.
+            for d in range(4):
+                o[cols.move + d] = avail[k, i, 2 + d]
+            if cols.pathing >= 0 or cols.height >= 0:
+                cx0, cy0 = int(xi), int(yi)
+                if cols.pathing >= 0:
+                    for p in range(8):
+                        o[cols.pathing + p] = _cell_value(pathable, cx0 + probe_dx[p], cy0 + probe_dy[p], True)
+                if cols.height >= 0:
+                    for p in range(9):
+                        o[cols.height + p] = _cell_value(heights, cx0 + probe_dx[p], cy0 + probe_dy[p], np.float32(1.0))
+
+            # Enemies within sight.
+            for j in range(m):
+                e = enemy_lo + j
+                if not alive[b, e]:
+                    continue
+                dx, dy = x[b, e] - xi, y[b, e] - yi
+                d = math.sqrt(dx * dx + dy * dy)
+                if not d < SIGHT_RANGE:
+                    continue
+                c = cols.enemy_offset + j * cols.enemy_feats
+                o[c + cols.enemy_attackable] = avail[k, i, N_ACTIONS_NO_ATTACK + j]
+                o[c + cols.enemy_distance] = d * _SIGHT_SCALE
+                o[c + cols.enemy_rel_x] = dx * _SIGHT_SCALE
+                o[c + cols.enemy_rel_y] = dy * _SIGHT_SCALE
+                if cols.enemy_health >= 0:
+                    o[c + cols.enemy_health] = health[b, e] / enemy_health_max[j]
+                if cols.enemy_shield >= 0:
+                    o[c + cols.enemy_shield] = shield[b, e] / enemy_shield_max[j]
+                for t in range(bits):
+                    o[c + cols.enemy_type + t] = enemy_onehot[j, t]
+
+            # The other agents of this side, in id order.
+            rank = 0  # the ally's row among the others
+            for j in range(n):
+                if j == i:
+                    continue
+                c = cols.ally_offset + rank * cols.ally_feats
+                rank += 1
+                v = own_lo + j
+                if not alive[b, v]:
+                    continue
+                dx, dy = x[b, v] - xi, y[b, v] - yi
+                d = math.sqrt(dx * dx + dy * dy)
+                if not d < SIGHT_RANGE:
+                    continue
+                o[c + cols.ally_visible] = 1.0
+                o[c + cols.ally_distance] = d * _SIGHT_SCALE
+                o[c + cols.ally_rel_x] = dx * _SIGHT_SCALE
+                o[c + cols.ally_rel_y] = dy * _SIGHT_SCALE
+                if cols.ally_health >= 0:
+                    o[c + cols.ally_health] = health[b, v] / own_health_max[j]
+                if cols.ally_shield >= 0:
+                    o[c + cols.ally_shield] = shield[b, v] / own_shield_max[j]
+                for t in range(bits):
+                    o[c + cols.ally_type + t] = own_onehot[j, t]
+                if cols.ally_last_action >= 0:
+                    a = last_action[b, j]
+                    if a >= 0:
+                        o[c + cols.ally_last_action + a] = 1.0
+
+            # Own block.
+            c = cols.own_offset
+            if cols.own_health >= 0:
+                o[c + cols.own_health] = health[b, u] / own_health_max[i]
+            if cols.own_shield >= 0:
+                o[c + cols.own_shield] = shield[b, u] / own_shield_max[i]
             for t in range(bits):
-                o[c + cols.enemy_type + t] = side.enemy_onehot[j, t]
-
-        # The other agents of this side, in id order.
-        rank = 0  # the ally's row among the others
-        for j in range(n):
-            if j == i:
-                continue
-            c = cols.ally_offset + rank * cols.ally_feats
-            rank += 1
-            v = own_lo + j
-            if not alive[b, v]:
-                continue
-            dx, dy = x[b, v] - xi, y[b, v] - yi
-            d = math.sqrt(dx * dx + dy * dy)
-            if not d < SIGHT_RANGE:
-                continue
-            o[c + cols.ally_visible] = 1.0
-            o[c + cols.ally_distance] = d * _SIGHT_SCALE
-            o[c + cols.ally_rel_x] = dx * _SIGHT_SCALE
-            o[c + cols.ally_rel_y] = dy * _SIGHT_SCALE
-            if cols.ally_health >= 0:
-                o[c + cols.ally_health] = health[b, v] / side.own_health_max[j]
-            if cols.ally_shield >= 0:
-                o[c + cols.ally_shield] = shield[b, v] / side.own_shield_max[j]
-            for t in range(bits):
-                o[c + cols.ally_type + t] = side.own_onehot[j, t]
-            if cols.ally_last_action >= 0:
-                a = last_action[b, j]
-                if a >= 0:
-                    o[c + cols.ally_last_action + a] = 1.0
-
-        # Own block.
-        c = cols.own_offset
-        if cols.own_health >= 0:
-            o[c + cols.own_health] = health[b, u] / side.own_health_max[i]
-        if cols.own_shield >= 0:
-            o[c + cols.own_shield] = shield[b, u] / side.own_shield_max[i]
-        for t in range(bits):
-            o[c + cols.own_type + t] = side.own_onehot[i, t]
+                o[c + cols.own_type + t] = own_onehot[i, t]
 
 
 @kernel
@@ -428,8 +445,7 @@ def observations_batch(rows, units, avail, last_action, episode_step, out, side,
     One thread: writing the observations is bound by memory bandwidth, and a second thread measured no faster (3m,
     4096 battles: 0.58 ms on one thread, 0.75 ms on two).
     """
-    for k in range(rows.shape[0]):
-        _observe_battle(out[k], avail[k], rows[k], units, last_action, episode_step, side, cols)
+    _observe_rows(rows, units, avail, last_action, episode_step, side, cols, out)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -437,76 +453,82 @@ def observations_batch(rows, units, avail, last_action, episode_step, out, side,
 
 
 @inline
-def _state_battle(o, b, units, last_action, episode_step, side, cols):
-    """The global state of battle ``b`` from side's point of view into ``o`` (state_size,)."""
-    x, y, alive, health, shield = units.x, units.y, units.alive, units.health, units.shield
-    own_lo, enemy_lo = side.actions.own_lo, side.actions.enemy_lo
-    size = o.shape[0]
-    n, m = side.own_health_max.shape[0], side.enemy_health_max.shape[0]
+def _state_rows(rows, units, last_action, episode_step, side, cols, out):
+    """The global state of battles ``rows`` from side's point of view into ``out`` (len(rows), state_size)."""
+    x, y, alive, health, shield, energy, cooldown = units
+    own_lo, enemy_lo, healer = side.actions.own_lo, side.actions.enemy_lo, side.actions.healer
+    own_health_max, own_shield_max, own_onehot = side.own_health_max, side.own_shield_max, side.own_onehot
+    enemy_health_max, enemy_shield_max, enemy_onehot = side.enemy_health_max, side.enemy_shield_max, \
+        side.enemy_onehot
+    max_cooldown = side.max_cooldown
+    size = out.shape[1]
+    n, m = own_health_max.shape[0], enemy_health_max.shape[0]
     n_actions = N_ACTIONS_NO_ATTACK + m
-    bits = side.own_onehot.shape[1]
+    bits = own_onehot.shape[1]
     cx, cy, width, height = side.centre_x, side.centre_y, side.map_width, side.map_height
-    for c in range(size):
-        o[c] = 0.0
-    for i in range(n):
-        u = own_lo + i
-        if not alive[b, u]:
-            continue
-        c = i * cols.state_ally_feats
-        o[c + cols.state_ally_health] = health[b, u] / side.own_health_max[i]
-        # Medivacs report energy, every other unit its weapon cooldown (loops until it may fire again).
-        timer = units.energy[b, u] if side.actions.healer[i] else max(units.cooldown[b, u], 0.0)
-        o[c + cols.state_ally_cooldown] = timer / side.max_cooldown[i]
-        o[c + cols.state_ally_rel_x] = (x[b, u] - cx) / width
-        o[c + cols.state_ally_rel_y] = (y[b, u] - cy) / height
-        if cols.state_ally_shield >= 0:
-            o[c + cols.state_ally_shield] = shield[b, u] / side.own_shield_max[i]
-        for t in range(bits):
-            o[c + cols.state_ally_type + t] = side.own_onehot[i, t]
-    for j in range(m):
-        e = enemy_lo + j
-        if not alive[b, e]:
-            continue
-        c = cols.state_enemy_offset + j * cols.state_enemy_feats
-        o[c + cols.state_enemy_health] = health[b, e] / side.enemy_health_max[j]
-        o[c + cols.state_enemy_rel_x] = (x[b, e] - cx) / width
-        o[c + cols.state_enemy_rel_y] = (y[b, e] - cy) / height
-        if cols.state_enemy_shield >= 0:
-            o[c + cols.state_enemy_shield] = shield[b, e] / side.enemy_shield_max[j]
-        for t in range(bits):
-            o[c + cols.state_enemy_type + t] = side.enemy_onehot[j, t]
-    if cols.state_last_action >= 0:
+    for k in range(rows.shape[0]):
+        b = rows[k]
+        o = out[k]
+        for c in range(size):
+            o[c] = 0.0
         for i in range(n):
-            a = last_action[b, i]
-            if a >= 0:
-                o[cols.state_last_action + i * n_actions + a] = 1.0
-    if cols.state_timestep >= 0:
-        o[cols.state_timestep] = episode_step[b] / side.episode_limit
+            u = own_lo + i
+            if not alive[b, u]:
+                continue
+            c = i * cols.state_ally_feats
+            o[c + cols.state_ally_health] = health[b, u] / own_health_max[i]
+            # Medivacs report energy, every other unit its weapon cooldown (loops until it may fire again).
+            timer = energy[b, u] if healer[i] else max(cooldown[b, u], 0.0)
+            o[c + cols.state_ally_cooldown] = timer / max_cooldown[i]
+            o[c + cols.state_ally_rel_x] = (x[b, u] - cx) / width
+            o[c + cols.state_ally_rel_y] = (y[b, u] - cy) / height
+            if cols.state_ally_shield >= 0:
+                o[c + cols.state_ally_shield] = shield[b, u] / own_shield_max[i]
+            for t in range(bits):
+                o[c + cols.state_ally_type + t] = own_onehot[i, t]
+        for j in range(m):
+            e = enemy_lo + j
+            if not alive[b, e]:
+                continue
+            c = cols.state_enemy_offset + j * cols.state_enemy_feats
+            o[c + cols.state_enemy_health] = health[b, e] / enemy_health_max[j]
+            o[c + cols.state_enemy_rel_x] = (x[b, e] - cx) / width
+            o[c + cols.state_enemy_rel_y] = (y[b, e] - cy) / height
+            if cols.state_enemy_shield >= 0:
+                o[c + cols.state_enemy_shield] = shield[b, e] / enemy_shield_max[j]
+            for t in range(bits):
+                o[c + cols.state_enemy_type + t] = enemy_onehot[j, t]
+        if cols.state_last_action >= 0:
+            for i in range(n):
+                a = last_action[b, i]
+                if a >= 0:
+                    o[cols.state_last_action + i * n_actions + a] = 1.0
+        if cols.state_timestep >= 0:
+            o[cols.state_timestep] = episode_step[b] / side.episode_limit
 
 
 @kernel
 def global_state_batch(rows, units, last_action, episode_step, out, side, cols):
     """Write the global state of battles ``rows`` into ``out`` (float32 (len(rows), state_size))."""
-    for k in range(rows.shape[0]):
-        _state_battle(out[k], rows[k], units, last_action, episode_step, side, cols)
+    _state_rows(rows, units, last_action, episode_step, side, cols, out)
 
 
 @inline
-def _encode_battle(k, b, units, last_action, episode_step, out, side, cols):
-    """Row k of the :class:`Encoding` ``out``: battle b's masks, observations and (when ``out.state`` has rows)
-    global state."""
-    _avail_battle(out.avail[k], b, units, side.actions)
-    _observe_battle(out.obs[k], out.avail[k], b, units, last_action, episode_step, side, cols)
+def _encode_rows(rows, units, last_action, episode_step, out, side, cols):
+    """Battles ``rows``' masks, observations and (when ``out.state`` has rows) global state into the
+    :class:`Encoding` ``out`` (row k for battle ``rows[k]``)."""
+    avail = out.avail
+    _avail_rows(rows, units, side.actions, avail)
+    _observe_rows(rows, units, avail, last_action, episode_step, side, cols, out.obs)
     if out.state.shape[0] > 0:
-        _state_battle(out.state[k], b, units, last_action, episode_step, side, cols)
+        _state_rows(rows, units, last_action, episode_step, side, cols, out.state)
 
 
 @kernel
 def encode_batch(rows, units, last_action, episode_step, out, side, cols):
     """Available actions, observations and (when ``out.state`` has rows) the global state of battles ``rows`` in
     one call, into the :class:`Encoding` ``out`` (row k for battle ``rows[k]``)."""
-    for k in range(rows.shape[0]):
-        _encode_battle(k, rows[k], units, last_action, episode_step, out, side, cols)
+    _encode_rows(rows, units, last_action, episode_step, out, side, cols)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -514,32 +536,29 @@ def encode_batch(rows, units, last_action, episode_step, out, side, cols):
 
 
 @inline
-def _battle_outcome(b, alive, rules, result):
+def _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue):
     n_units = alive.shape[1]
-    n_red, fighter = rules.n_red, rules.fighter
     red_left = blue_left = False
     dead = 0
     for u in range(n_red):
         dead += not alive[b, u]
         red_left |= alive[b, u] and fighter[u]
-    result.dead_red[b] = dead
+    dead_red[b] = dead
     dead = 0
     for u in range(n_red, n_units):
         dead += not alive[b, u]
         blue_left |= alive[b, u] and fighter[u]
-    result.dead_blue[b] = dead
+    dead_blue[b] = dead
     if red_left:
-        result.outcome[b] = RUNNING if blue_left else RED_WON
+        outcome[b] = RUNNING if blue_left else RED_WON
     else:
-        result.outcome[b] = BLUE_WON if blue_left else DRAW
+        outcome[b] = BLUE_WON if blue_left else DRAW
 
 
 @inline
-def _battle_rewards(b, step, units, rules, outcome, reward):
-    prev_hs, prev_alive = step.prev_hs, step.prev_alive
-    alive, health, shield = units.alive, units.health, units.shield
-    death_value, win, defeat, negative_scale = rules.death_value, rules.win, rules.defeat, rules.negative_scale
-    n_red = rules.n_red
+def _battle_losses(b, prev_hs, prev_alive, alive, health, shield, n_red):
+    """Health + shield lost and units died during the step in battle b: (lost_red, lost_blue, died_red,
+    died_blue)."""
     lost_red = lost_blue = 0.0
     died_red = died_blue = 0
     for u in range(alive.shape[1]):
@@ -553,27 +572,27 @@ def _battle_rewards(b, step, units, rules, outcome, reward):
         else:
             lost_blue += lost
             died_blue += not live
-    for s in range(2):
-        won = outcome[b] == (RED_WON if s == 0 else BLUE_WON)
-        beaten = outcome[b] == (BLUE_WON if s == 0 else RED_WON)
-        if rules.sparse:
-            r = 1.0 if won else (-1.0 if beaten else 0.0)
-        else:
-            lost_enemy, lost_own = (lost_blue, lost_red) if s == 0 else (lost_red, lost_blue)
-            died_enemy, died_own = (died_blue, died_red) if s == 0 else (died_red, died_blue)
-            if rules.only_positive:
-                r = max(0.0, lost_enemy + death_value * died_enemy)
-            else:
-                r = (lost_enemy + (death_value * died_enemy - death_value * negative_scale * died_own)
-                     - negative_scale * lost_own)
-            r += won * win + beaten * defeat
-        reward[b, s] = r / rules.divisor[s]
+    return lost_red, lost_blue, died_red, died_blue
+
+
+@inline
+def _side_reward(won, beaten, lost_enemy, lost_own, died_enemy, died_own, options):
+    """One side's reward for a step, before scaling; ``options``: :class:`RewardOptions`."""
+    if options.sparse:
+        return 1.0 if won else (-1.0 if beaten else 0.0)
+    death_value, negative_scale = options.death_value, options.negative_scale
+    if options.only_positive:
+        r = max(0.0, lost_enemy + death_value * died_enemy)
+    else:
+        r = (lost_enemy + (death_value * died_enemy - death_value * negative_scale * died_own)
+             - negative_scale * lost_own)
+    return r + (won * options.win + beaten * options.defeat)
 
 
 @kernel
 def finish_encode(units, step, counters, result, out, side, cols, rules):
-    """The way up of a core step, one pass per battle: the bookkeeping after the engine stepped the ``step.active``
-    battles, then red's encoding (``encode_batch``'s, into the :class:`Encoding` ``out``) of every battle.
+    """The way up of a core step: the bookkeeping after the engine stepped the ``step.active`` battles, then red's
+    encoding (``encode_batch``'s, into the :class:`Encoding` ``out``) of every battle.
 
     Bookkeeping (:class:`StepInputs` ``step``, :class:`Counters` ``counters``, :class:`StepRules` ``rules``):
     counts the step and records the actions (zero rows of ``red_actions`` or ``blue_actions``: a script played
@@ -583,13 +602,15 @@ def finish_encode(units, step, counters, result, out, side, cols, rules):
     ``done``. Battles not active, and restarted ones, get RUNNING and zero reward. Returns the number of battles
     that ended.
     """
-    active, restarted, red_actions, blue_actions = step.active, step.restarted, step.red_actions, step.blue_actions
-    episode_step, done, last_red, last_blue = counters.episode_step, counters.done, counters.last_red, \
-        counters.last_blue
-    outcome, reward, terminated, truncated = result.outcome, result.reward, result.terminated, result.truncated
+    prev_hs, prev_alive, active, restarted, red_actions, blue_actions = step
+    episode_step, done, last_red, last_blue = counters
+    outcome, reward, terminated, truncated, dead_red, dead_blue = result
+    alive, health, shield = units.alive, units.health, units.shield
+    fighter, n_red, divisor, options = rules.fighter, rules.n_red, rules.divisor, rules.reward
+    n_battles = alive.shape[0]
     ended = 0
-    for b in range(units.alive.shape[0]):
-        _battle_outcome(b, units.alive, rules, result)
+    for b in range(n_battles):
+        _battle_outcome(b, alive, fighter, n_red, outcome, dead_red, dead_blue)
         terminated[b] = truncated[b] = False
         if active[b]:
             episode_step[b] += 1
@@ -606,14 +627,20 @@ def finish_encode(units, step, counters, result, out, side, cols, rules):
                 terminated[b] = done[b] = True
                 ended += 1
         else:
-            _battle_rewards(b, step, units, rules, outcome, reward)
+            lost_red, lost_blue, died_red, died_blue = _battle_losses(b, prev_hs, prev_alive, alive, health, shield,
+                                                                      n_red)
+            red_won, blue_won = outcome[b] == RED_WON, outcome[b] == BLUE_WON
+            reward[b, 0] = _side_reward(red_won, blue_won, lost_blue, lost_red, died_blue, died_red,
+                                        options) / divisor[0]
+            reward[b, 1] = _side_reward(blue_won, red_won, lost_red, lost_blue, died_red, died_blue,
+                                        options) / divisor[1]
             terminated[b] = outcome[b] != RUNNING
             truncated[b] = not terminated[b] and episode_step[b] >= rules.step_limit
             if terminated[b] or truncated[b]:
                 done[b] = True
                 ended += 1
-        # Red's encoding of the new state (inline, as encode_batch's: a call per battle cost 6x).
-        _encode_battle(b, b, units, last_red, episode_step, out, side, cols)
+    # Red's encoding of the new state, in the same call (a call per battle cost 6x).
+    _encode_rows(np.arange(n_battles), units, last_red, episode_step, out, side, cols)
     return ended
 
 
