@@ -65,11 +65,10 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from smac_hard_gym.backend import BACKENDS, Backend, make_backend
-from smac_hard_gym.engine.direct import compiled_entry
 from smac_hard_gym.engine.state import BLUE, RED, Commands
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents import Script, SideView, make_opponent
-from smac_hard_gym.smac.actions import available_actions, raise_unavailable, validate_actions
+from smac_hard_gym.smac.actions import raise_unavailable, validate_actions
 from smac_hard_gym.smac.features import (
     BLUE_WON,
     DRAW,
@@ -79,7 +78,15 @@ from smac_hard_gym.smac.features import (
     SideFeatures,
     SmacOptions,
 )
-from smac_hard_gym.smac.kernels import Counters, StepInputs, StepOutcome, check_decode_batch, finish_encode
+from smac_hard_gym.smac.kernels import (
+    Counters,
+    DirectKernel,
+    StepInputs,
+    StepOutcome,
+    check_decode_batch,
+    finish_encode,
+    is_plain,
+)
 from smac_hard_gym.units import STATS, WEAPON_HEAL, S
 
 __all__ = ["TwoPlayerCore", "StepResult", "MODES", "SELF_PLAY_NAME", "RED", "BLUE"]
@@ -151,30 +158,9 @@ _INT64 = np.dtype(np.int64)
 
 
 def _plain(actions: np.ndarray) -> bool:
-    """Actions of the one type the step's direct kernel calls were compiled for: a writable, aligned, C-contiguous
-    int64 (B, n) array (what validation and every env layer produce)."""
-    if type(actions) is not np.ndarray or actions.dtype is not _INT64 or actions.ndim != 2:
-        return False
-    flags = actions.flags
-    return flags.c_contiguous and flags.writeable and flags.aligned
-
-
-class _DirectKernel:
-    """One of a step's kernels, called past numba's dispatcher (``compiled_entry``) once a call with ``plain``
-    actions has compiled it. Every other argument at the core's call sites is the core's own, allocated the same
-    way each step; other actions go through the dispatcher."""
-
-    def __init__(self, kernel: Any) -> None:
-        self.kernel = kernel
-        self.entry: Any = None
-
-    def __call__(self, plain: bool, *args: Any) -> Any:
-        if plain and self.entry is not None:
-            return self.entry(*args)
-        result = self.kernel(*args)
-        if plain:
-            self.entry = compiled_entry(self.kernel, args)
-        return result
+    """Actions of the one type the step's direct kernel calls were compiled for: a plain int64 (B, n) array (what
+    validation and every env layer produce)."""
+    return is_plain(actions, _INT64, 2)
 
 
 class TwoPlayerCore:
@@ -258,8 +244,8 @@ class TwoPlayerCore:
         self._no_red_actions = np.zeros((0, self.n_red), dtype=np.int64)  # red's, when red_script plays it
         self._counters = Counters(self.episode_step, self.done, *self.last_action)  # the way up updates them
         # The way up, and each side's way down, called past numba's dispatcher once compiled.
-        self._finish_encode = _DirectKernel(finish_encode)
-        self._check_decode = (_DirectKernel(check_decode_batch), _DirectKernel(check_decode_batch))
+        self._finish_encode = DirectKernel(finish_encode)
+        self._check_decode = (DirectKernel(check_decode_batch), DirectKernel(check_decode_batch))
         self._error: BaseException | None = None
         self._closed = False
         self.reset(seed=seed)
@@ -375,7 +361,8 @@ class TwoPlayerCore:
         out = feats.outputs(size, self.encode_state)
         avail, obs = out.avail, out.obs
         n_ended = self._finish_encode(
-            _plain(red) and (blue is self._no_actions or _plain(blue)), feats.unit_arrays(state),
+            _plain(red) and (blue is self._no_actions or _plain(blue)) and feats.plain_units(state),
+            feats.unit_arrays(state),
             StepInputs(prev_hs, prev_alive, active, restarted, red, blue), self._counters,
             StepOutcome(outcome, reward, terminated, truncated, dead_red, dead_blue), out, feats.constants,
             feats.columns, self._rules)
@@ -406,8 +393,8 @@ class TwoPlayerCore:
                                                         SIDE_NAMES[side])
         avail = self.avail_actions(side)
         state = self.backend.state
-        bad = self._check_decode[side](_plain(acts), acts, avail, active, replaced, state.x, state.y, self.commands,
-                                       feats.constants.actions)
+        bad = self._check_decode[side](_plain(acts) and feats.plain_units(state), acts, avail, active, replaced,
+                                       state.x, state.y, self.commands, feats.constants.actions)
         if bad >= 0:
             raise_unavailable(feats, acts, avail, bad, hint)
         return acts
@@ -427,7 +414,7 @@ class TwoPlayerCore:
         if self._encoded[side] is not None:
             return self._encoded[side][0]
         if self._avail_cache[side] is None:
-            self._avail_cache[side] = available_actions(self.features[side], self.backend.state)
+            self._avail_cache[side] = self.features[side].available_actions(self.backend.state)
         return self._avail_cache[side]
 
     def observations(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:

@@ -73,6 +73,8 @@ _STANDARD_TYPE_ORDER = {
     "bane": ("baneling", "zergling"),
 }
 
+_INT64, _BOOL = np.dtype(np.int64), np.dtype(np.bool_)
+
 _SMAC_MAX_COOLDOWN = np.array([u.smac_max_cooldown for u in UNITS], dtype=np.float64)
 
 
@@ -292,7 +294,11 @@ class SideFeatures:
 
         self.heal_target_ok = ~self.own_healer[:self.n_heal_targets]
         self._all_rows = np.arange(0, dtype=np.int64)
-        self._units: tuple[BattleState | None, fk.UnitArrays | None] = (None, None)  # the last state's arrays
+        self._units: tuple[BattleState | None, fk.UnitArrays | None, bool] = (None, None, False)  # the last state's
+        # The kernels called on every step of some APIs (blue's encoding in self-play, a policy opponent's), past
+        # numba's dispatcher once compiled for plain arrays.
+        self._encode_batch = fk.DirectKernel(fk.encode_batch)
+        self._available_actions_batch = fk.DirectKernel(fk.available_actions_batch)
 
         # The kernels' inputs: this side's constants, and every column from the name lists above.
         self.constants = fk.SideConstants(
@@ -407,9 +413,23 @@ class SideFeatures:
         """Available actions, observations and global state in one kernel call (fresh arrays, the values of
         :func:`~smac_hard_gym.smac.actions.available_actions`, :meth:`observations` and :meth:`global_state`)."""
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
-        out = self.outputs(len(rows), with_state=True)
-        fk.encode_batch(rows, self.unit_arrays(state), last_action, episode_step, out, self.constants, self.columns)
+        out = self.outputs(len(rows), with_state=True)  # plain, as every output allocated here
+        plain = (self.plain_units(state) and fk.is_plain(rows, _INT64, 1) and fk.is_plain(last_action, _INT64, 2)
+                 and fk.is_plain(episode_step, _INT64, 1))
+        self._encode_batch(plain, rows, self.unit_arrays(state), last_action, episode_step, out, self.constants,
+                           self.columns)
         return out.avail, out.obs, self.finish_state(out.obs, out.state)
+
+    def available_actions(self, state: BattleState, out: np.ndarray | None = None,
+                          rows: np.ndarray | None = None) -> np.ndarray:
+        """Available actions of every agent: bool ``(B, n_agents, n_actions)`` (of battles ``rows`` only, when given:
+        ``(len(rows), n_agents, n_actions)``); see :mod:`smac_hard_gym.smac.actions`."""
+        rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
+        if out is None:
+            out = np.empty((len(rows), self.n_agents, self.n_actions), dtype=bool)
+        plain = self.plain_units(state) and fk.is_plain(rows, _INT64, 1) and fk.is_plain(out, _BOOL, 3)
+        self._available_actions_batch(plain, rows, self.unit_arrays(state), out, self.constants.actions)
+        return out
 
     def outputs(self, batch: int, with_state: bool) -> fk.Encoding:
         """Fresh arrays for an encoding of ``batch`` battles: masks, observations and the global state (zero rows
@@ -421,11 +441,16 @@ class SideFeatures:
 
     def unit_arrays(self, state: BattleState) -> fk.UnitArrays:
         """The kernels' view of ``state`` (kept for the last state seen: a backend keeps its state arrays)."""
-        seen, units = self._units
-        if state is not seen:
+        if state is not self._units[0]:
             units = fk.UnitArrays.of(state)
-            self._units = (state, units)
-        return units
+            self._units = (state, units, units.is_plain())
+        return self._units[1]
+
+    def plain_units(self, state: BattleState) -> bool:
+        """Whether ``state``'s arrays are of the one type direct kernel calls compile for
+        (:meth:`~smac_hard_gym.smac.kernels.UnitArrays.is_plain`, kept with :meth:`unit_arrays`)."""
+        self.unit_arrays(state)
+        return self._units[2]
 
     def finish_state(self, obs: np.ndarray, global_state: np.ndarray) -> np.ndarray:
         """The global state of an encoding the kernel wrote: with ``obs_instead_of_state``, the observations."""
