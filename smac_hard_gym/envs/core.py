@@ -154,13 +154,8 @@ class _OpponentStats:
         return totals
 
 
+# Actions of the one type the step's direct kernel calls compile for (what validation and every env layer produce).
 _INT64 = np.dtype(np.int64)
-
-
-def _plain(actions: np.ndarray) -> bool:
-    """Actions of the one type the step's direct kernel calls were compiled for: a plain int64 (B, n) array (what
-    validation and every env layer produce)."""
-    return is_plain(actions, _INT64, 2)
 
 
 class TwoPlayerCore:
@@ -360,9 +355,10 @@ class TwoPlayerCore:
         feats = self.features[RED]
         out = feats.outputs(size, self.encode_state)
         avail, obs = out.avail, out.obs
+        units, plain = feats.kernel_units(state)
         n_ended = self._finish_encode(
-            _plain(red) and (blue is self._no_actions or _plain(blue)) and feats.plain_units(state),
-            feats.unit_arrays(state),
+            plain and is_plain(red, _INT64, 2) and (blue is self._no_actions or is_plain(blue, _INT64, 2)),
+            units,
             StepInputs(prev_hs, prev_alive, active, restarted, red, blue), self._counters,
             StepOutcome(outcome, reward, terminated, truncated, dead_red, dead_blue), out, feats.constants,
             feats.columns, self._rules)
@@ -393,8 +389,9 @@ class TwoPlayerCore:
                                                         SIDE_NAMES[side])
         avail = self.avail_actions(side)
         state = self.backend.state
-        bad = self._check_decode[side](_plain(acts) and feats.plain_units(state), acts, avail, active, replaced,
-                                       state.x, state.y, self.commands, feats.constants.actions)
+        units, plain = feats.kernel_units(state)
+        bad = self._check_decode[side](plain and is_plain(acts, _INT64, 2), acts, avail, active, replaced, units.x,
+                                       units.y, self.commands, feats.constants.actions)
         if bad >= 0:
             raise_unavailable(feats, acts, avail, bad, hint)
         return acts

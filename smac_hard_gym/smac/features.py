@@ -381,7 +381,7 @@ class SideFeatures:
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         if out is None:
             out = np.empty((len(rows), self.n_agents, self.obs_size), dtype=np.float32)
-        fk.observations_batch(rows, self.unit_arrays(state), avail, last_action, episode_step, out, self.constants,
+        fk.observations_batch(rows, self.kernel_units(state)[0], avail, last_action, episode_step, out, self.constants,
                               self.columns)
         return out
 
@@ -404,7 +404,7 @@ class SideFeatures:
             return out
         if out is None:
             out = np.empty((len(rows), self.state_size), dtype=np.float32)
-        fk.global_state_batch(rows, self.unit_arrays(state), last_action, episode_step, out, self.constants,
+        fk.global_state_batch(rows, self.kernel_units(state)[0], last_action, episode_step, out, self.constants,
                               self.columns)
         return out
 
@@ -414,9 +414,10 @@ class SideFeatures:
         :func:`~smac_hard_gym.smac.actions.available_actions`, :meth:`observations` and :meth:`global_state`)."""
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         out = self.outputs(len(rows), with_state=True)  # plain, as every output allocated here
-        plain = (self.plain_units(state) and fk.is_plain(rows, _INT64, 1) and fk.is_plain(last_action, _INT64, 2)
+        units, plain = self.kernel_units(state)
+        plain = (plain and fk.is_plain(rows, _INT64, 1) and fk.is_plain(last_action, _INT64, 2)
                  and fk.is_plain(episode_step, _INT64, 1))
-        self._encode_batch(plain, rows, self.unit_arrays(state), last_action, episode_step, out, self.constants,
+        self._encode_batch(plain, rows, units, last_action, episode_step, out, self.constants,
                            self.columns)
         return out.avail, out.obs, self.finish_state(out.obs, out.state)
 
@@ -427,8 +428,9 @@ class SideFeatures:
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         if out is None:
             out = np.empty((len(rows), self.n_agents, self.n_actions), dtype=bool)
-        plain = self.plain_units(state) and fk.is_plain(rows, _INT64, 1) and fk.is_plain(out, _BOOL, 3)
-        self._available_actions_batch(plain, rows, self.unit_arrays(state), out, self.constants.actions)
+        units, plain = self.kernel_units(state)
+        plain = plain and fk.is_plain(rows, _INT64, 1) and fk.is_plain(out, _BOOL, 3)
+        self._available_actions_batch(plain, rows, units, out, self.constants.actions)
         return out
 
     def outputs(self, batch: int, with_state: bool) -> fk.Encoding:
@@ -439,18 +441,16 @@ class SideFeatures:
         rows = batch if with_state and not self.options.obs_instead_of_state else 0
         return fk.Encoding(avail, obs, np.empty((rows, self.state_size), dtype=np.float32))
 
-    def unit_arrays(self, state: BattleState) -> fk.UnitArrays:
-        """The kernels' view of ``state`` (kept for the last state seen: a backend keeps its state arrays)."""
-        if state is not self._units[0]:
+    def kernel_units(self, state: BattleState) -> tuple[fk.UnitArrays, bool]:
+        """The kernels' view of ``state``, and whether its arrays are of the one type direct kernel calls compile
+        for (:meth:`~smac_hard_gym.smac.kernels.UnitArrays.is_plain`); kept for the last state seen, as a backend
+        keeps its state arrays."""
+        seen, units, plain = self._units
+        if state is not seen:
             units = fk.UnitArrays.of(state)
-            self._units = (state, units, units.is_plain())
-        return self._units[1]
-
-    def plain_units(self, state: BattleState) -> bool:
-        """Whether ``state``'s arrays are of the one type direct kernel calls compile for
-        (:meth:`~smac_hard_gym.smac.kernels.UnitArrays.is_plain`, kept with :meth:`unit_arrays`)."""
-        self.unit_arrays(state)
-        return self._units[2]
+            plain = units.is_plain()
+            self._units = (state, units, plain)
+        return units, plain
 
     def finish_state(self, obs: np.ndarray, global_state: np.ndarray) -> np.ndarray:
         """The global state of an encoding the kernel wrote: with ``obs_instead_of_state``, the observations."""
