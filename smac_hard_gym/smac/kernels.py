@@ -334,8 +334,8 @@ def _avail_rows(rows, units, side, out):
     :class:`ActionConstants`.
 
     Every helper here reads the bundles' arrays once per call and loops over the battles itself: each read of an
-    array out of a bundle (and each bundle passed on) costs reference counting, which per battle cost a third of
-    the kernel's time.
+    array out of a bundle (and each bundle passed on) costs reference counting, which done per battle made the
+    observation and state kernels two to three times slower on 64 battles.
     """
     x, y, alive = units.x, units.y, units.alive
     own_lo, enemy_lo, healer, heal_target_ok = side.own_lo, side.enemy_lo, side.healer, side.heal_target_ok
