@@ -1,8 +1,9 @@
 """SMAX (JaxMARL) throughput with the policy and counting of ``smac-hard-gym bench vector``.
 
-Run it with the Python of a separate environment that has ``jaxmarl`` (see ``benchmarks/README.md``); it imports
-nothing from smac-hard-gym, so ``smac-hard-gym bench vector --peer smax`` can call it as a subprocess and merge its
-JSON (written to ``--json`` or, without it, printed as the last line of stdout).
+Run it with the Python of a separate environment that has ``jaxmarl`` (see ``benchmarks/README.md``); it does not
+import smac-hard-gym (it loads ``smac_hard_gym/bench/arguments.py``, which needs only the standard library, by path), so
+``smac-hard-gym bench vector --peer smax`` can call it as a subprocess and merge its JSON (written to ``--json`` or,
+without it, printed as the last line of stdout).
 
 What is measured, per map and batch size N (``HeuristicEnemySMAX``, SMAX's built-in enemy, default options):
 
@@ -24,30 +25,32 @@ apart (the first two calls) and excluded; the figure is the median of the timed 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import platform
 import statistics
 import sys
 import time
+from pathlib import Path
 
 MODES = ("scan", "loop", "pymarl")
 DEFAULT_CACHE = os.path.join(os.path.expanduser("~"), ".cache", "smax-bench-jax")
 STEPS_PER_CALL = 4096  # env steps one scan chunk aims at (N envs x chunk length), so small N still amortise
 
 
-def _ints(text: str) -> list[int]:
-    values = [int(v) for v in text.split(",") if v]
-    if not values or min(values) < 1:
-        raise argparse.ArgumentTypeError(f"expected comma-separated positive ints, got {text!r}")
-    return values
+def _load_arguments():
+    """The benchmark command lines' value types, ``smac_hard_gym/bench/arguments.py``, loaded by its path: this
+    script runs in a Python without smac-hard-gym, always from the repository, and parses as ``bench`` does."""
+    path = Path(__file__).resolve().parents[1] / "smac_hard_gym" / "bench" / "arguments.py"
+    spec = importlib.util.spec_from_file_location("smac_hard_gym_bench_arguments", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
-def _names(text: str) -> list[str]:
-    values = [v for v in text.split(",") if v]
-    if not values:
-        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
-    return values
+_arguments = _load_arguments()
+comma_ints, comma_names = _arguments.comma_ints, _arguments.comma_names
 
 
 def _use_compilation_cache(path: str) -> None:
@@ -259,9 +262,9 @@ def bench_pymarl(runner: SmaxRunner, map_name: str, seconds: float, repeats: int
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--maps", type=_names, default=["3m"], help="comma-separated SMAX map names")
-    parser.add_argument("--num-envs", type=_ints, default=[1, 16, 256, 1024, 4096], help="batch sizes")
-    parser.add_argument("--modes", type=_names, default=list(MODES), help=f"subset of {','.join(MODES)}")
+    parser.add_argument("--maps", type=comma_names, default=["3m"], help="comma-separated SMAX map names")
+    parser.add_argument("--num-envs", type=comma_ints, default=[1, 16, 256, 1024, 4096], help="batch sizes")
+    parser.add_argument("--modes", type=comma_names, default=list(MODES), help=f"subset of {','.join(MODES)}")
     parser.add_argument("--seconds", type=float, default=1.0, help="seconds per timed repeat")
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats; the median is reported")
     parser.add_argument("--seed", type=int, default=0)

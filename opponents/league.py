@@ -7,10 +7,10 @@ the learner fares against each.
 >>> league.names
 ['line_front', 'base']
 
-Training (``smac-hard-gym train --league``) adds a frozen copy of the learner every N steps
-(:meth:`League.add`, a :class:`~smac_hard_gym.opponents.policy.PolicyScript`) and feeds back the learner's win
-rate against each member (:meth:`League.update`). Each battle draws its member per episode from its own seeded
-generator, as a mixture does, with weights:
+Training (``smac-hard-gym train --league``, :mod:`smac_hard_gym.training.league`) adds a frozen copy of the learner
+every N steps (:meth:`League.add`, a :class:`~smac_hard_gym.opponents.policy.PolicyScript`) and feeds back the
+learner's win rate against each member (:meth:`League.update`). Each battle draws its member per episode from its
+own seeded generator, as a mixture does, with weights:
 
 - ``"uniform"``: every member equally;
 - ``"prioritized"``: prioritized fictitious self-play, weight ``(1 - win_rate) ** power`` (members the learner

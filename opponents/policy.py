@@ -197,8 +197,8 @@ class PolicyScript(Script):
         legal[rows] = masks
         # The learner's way down: a policy that ignores masks still plays legally (an unavailable action becomes the
         # agent's first legal one), decoded into this side's commands in one kernel call.
-        check_decode_batch(played, legal, active, True, np.zeros(batch, dtype=np.int64), view.state.x, view.state.y,
-                           commands.kind, commands.target, commands.x, commands.y, *feats.decode_args)
+        check_decode_batch(played, legal, active, np.zeros(batch, dtype=np.int64), view.state.x, view.state.y,
+                           commands, feats.constants.actions)
         self.last_action[rows] = played[rows]
 
     def _call(self, view: SideView, obs: np.ndarray, masks: np.ndarray, state: np.ndarray | None) -> Any:

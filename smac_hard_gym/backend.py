@@ -42,7 +42,8 @@ class Backend(Protocol):
 
 
 class NativeBackend:
-    """The embedded engine behind the backend interface."""
+    """The embedded engine behind the backend interface. ``step`` is the engine's own (it takes the interface's
+    ``commands, active``), so a core step calls the engine without a hop."""
 
     def __init__(self, spec: MapSpec | str, batch_size: int = 1, step_mul: int = 8,
                  cooldown_jitter: tuple[float, float] | None = SC2_COOLDOWN_JITTER) -> None:
@@ -53,6 +54,7 @@ class NativeBackend:
         self.n_red = self.engine.n_red
         self.n_blue = self.engine.n_blue
         self.state = self.engine.state
+        self.step = self.engine.step
 
     def reset(self, battles: np.ndarray | None = None, seeds: np.ndarray | None = None) -> None:
         if battles is None:
@@ -63,9 +65,6 @@ class NativeBackend:
         mask = np.zeros(self.batch_size, dtype=bool)
         mask[battles] = True
         self.engine.reset(mask, None if seeds is None else np.asarray(seeds)[order])
-
-    def step(self, commands: Commands, active: np.ndarray) -> None:
-        self.engine.step(commands, active)
 
     def close(self) -> None:
         pass

@@ -104,6 +104,8 @@ class SMACHardParallelEnv(RendersOneBattle, ParallelEnv):
                  seed: int | None = None, render_mode: str | None = None, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
                  opponent_isolation: str | None = None, **smac_options: Any) -> None:
+        """A public constructor with gymnasium-style keyword options (PettingZoo's envs take their settings by
+        name), hence the long list; SMAC's options may come as ``options`` or as keywords."""
         if not isinstance(teams, str) or teams not in TEAMS:
             raise ValueError(f"teams must be one of {TEAMS}, got {teams!r}")
         check_invalid_action(invalid_action)

@@ -8,9 +8,19 @@ import sys
 
 import pytest
 
-from smac_hard_gym import baselines
-from smac_hard_gym.baselines import PAPER, Run, SweepConfig, aggregate, plan, report_markdown, run_state, run_sweep
 from smac_hard_gym.cli import main
+from smac_hard_gym.training import baselines
+from smac_hard_gym.training.baselines import (
+    PAPER,
+    Run,
+    SweepConfig,
+    aggregate,
+    plan,
+    report_markdown,
+    run_state,
+    run_sweep,
+    sweep,  # run_sweep looks train_command up there
+)
 
 
 def _fake_run(out, map_name, opponent, seed, final, curve, blackbox=None, interrupted=False, value=None,
@@ -81,7 +91,7 @@ def test_sweep_skips_finished_runs_and_redoes_partial_ones(tmp_path, monkeypatch
                 f"'interrupted': False}}))")
         return [sys.executable, "-c", code]
 
-    monkeypatch.setattr(baselines, "train_command", fake_train)
+    monkeypatch.setattr(sweep, "train_command", fake_train)
     out = tmp_path / "out"
     config = SweepConfig(maps=["3m"], seeds=3, opponents=["default"], out=str(out), jobs=2)
     _fake_run(out, "3m", "default", 0, 1.0, [(0, 0.0), (256, 1.0)])  # done: kept
@@ -99,7 +109,7 @@ def test_sweep_skips_finished_runs_and_redoes_partial_ones(tmp_path, monkeypatch
 
 
 def test_a_failed_run_is_reported_and_redone_next_time(tmp_path, monkeypatch):
-    monkeypatch.setattr(baselines, "train_command", lambda run, config: [sys.executable, "-c", "raise SystemExit(3)"])
+    monkeypatch.setattr(sweep, "train_command", lambda run, config: [sys.executable, "-c", "raise SystemExit(3)"])
     config = SweepConfig(maps=["3m"], seeds=1, opponents=["default"], out=str(tmp_path))
     results = run_sweep(config, progress=False, log=lambda _: None)
     assert results["failed"] == ["3m-default-s0"]

@@ -213,3 +213,31 @@ def test_odd_action_arrays_step_exactly_as_plain_ones():
 
     for plain, odd in zip(play(False), play(True), strict=True):
         np.testing.assert_array_equal(plain, odd)
+
+
+def test_every_api_validates_actions_once(monkeypatch):
+    """The env layers validate actions and pass ``checked=True``: the core does not validate them again (blue's
+    included, in self-play), while its own callers still get validation."""
+    from smac_hard_gym.envs import core as core_module
+    from smac_hard_gym.envs.starcraft2 import StarCraft2Env
+    from smac_hard_gym.pettingzoo import parallel_env
+
+    validate = core_module.validate_actions
+    calls: list[str] = []
+
+    def counting(actions, shape, n_actions, who="red"):
+        calls.append(who)
+        return validate(actions, shape, n_actions, who)
+
+    monkeypatch.setattr(core_module, "validate_actions", counting)
+    env = StarCraft2Env("3m", mode="self-play")
+    env.reset()
+    env.step([[1, 1, 1], [1, 1, 1]])
+    zoo = parallel_env("3m", teams="both")
+    zoo.reset(seed=0)
+    zoo.step({agent: 1 for agent in zoo.agents})
+    assert calls == []
+    core = TwoPlayerCore("3m", 2, mode="self-play", seed=0)
+    core.step(np.ones((2, 3), dtype=np.int64), np.ones((2, 3), dtype=np.int64))
+    assert calls == ["red", "blue"]
+    env.close(), zoo.close(), core.close()

@@ -423,3 +423,35 @@ def test_one_pass_encoding_matches_the_separate_features(name):
             np.testing.assert_array_equal(avail, expected_avail)
             np.testing.assert_array_equal(obs, expected_obs)
             np.testing.assert_array_equal(state, feats.global_state(engine.state, last, steps, obs=expected_obs))
+
+
+# The column table's fields that name their feature differently from the feature-name lists.
+_COLUMN_FEATURES = {"type": "type_0", "last_action": "last_action_0", "cooldown": "energy/cooldown"}
+
+
+@pytest.mark.parametrize("name", ["3m", "2s3z", "MMM2", "bane_vs_bane"])
+def test_column_table_points_at_the_named_columns(name):
+    """Every column the kernels write (``SideFeatures.columns``) is where obs_feature_names() and
+    state_feature_names() name that feature, for every option combination and both sides."""
+    spec = load_map(name)
+    for combo in _COMBOS:
+        for side in (RED, BLUE):
+            feats = SideFeatures(spec, side, SmacOptions(**{**combo, "obs_instead_of_state": False}))
+            cols, obs_names, state_names = feats.columns, feats.obs_feature_names(), feats.state_feature_names()
+            blocks = {"enemy": ("enemy_0_", cols.enemy_offset), "ally": ("ally_0_", cols.ally_offset),
+                      "own": ("own_", cols.own_offset), "state_ally": ("ally_0_", 0),
+                      "state_enemy": ("enemy_0_", cols.state_enemy_offset)}
+            for field, column in cols._asdict().items():
+                block = next((b for b in sorted(blocks, key=len, reverse=True) if field.startswith(f"{b}_")), None)
+                feature = field.removeprefix(f"{block}_") if block else field
+                if block is None or feature in ("offset", "feats") or column < 0:
+                    continue
+                prefix, offset = blocks[block]
+                names = state_names if block.startswith("state") else obs_names
+                assert names[offset + column] == prefix + _COLUMN_FEATURES.get(feature, feature), (field, combo)
+            assert obs_names[cols.move:cols.move + 4] == ["move_north", "move_south", "move_east", "move_west"]
+            for field, first in (("pathing", "pathing_n2"), ("height", "height_n2")):
+                assert (getattr(cols, field) >= 0) == (first in obs_names)
+                assert getattr(cols, field) < 0 or obs_names[getattr(cols, field)] == first
+            assert cols.state_timestep < 0 or state_names[cols.state_timestep] == "timestep"
+            assert cols.state_last_action < 0 or state_names[cols.state_last_action] == "ally_0_last_action_0"

@@ -95,11 +95,11 @@ def test_training_curve_and_plot_writers(tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
     from matplotlib.figure import Figure
 
-    from smac_hard_gym import training
+    from smac_hard_gym.training import run_files
 
-    row = {c: 0.5 for c in training.CURVE_COLUMNS} | {"timesteps": 0, "episodes": 2, "train_episodes": 0}
-    training._write_curve(tmp_path / "curve.csv", [row])
-    assert training._plot_curve(tmp_path / "curve.png", [row], "t")
+    row = {c: 0.5 for c in run_files.CURVE_COLUMNS} | {"timesteps": 0, "episodes": 2, "train_episodes": 0}
+    run_files.write_curve(tmp_path / "curve.csv", [row])
+    assert run_files.plot_curve(tmp_path / "curve.png", [row], "t")
     csv_before, png_before = (tmp_path / "curve.csv").read_bytes(), (tmp_path / "curve.png").read_bytes()
     assert png_before.startswith(b"\x89PNG")
 
@@ -110,10 +110,10 @@ def test_training_curve_and_plot_writers(tmp_path, monkeypatch):
 
     monkeypatch.setattr(Figure, "savefig", half_savefig)
     with pytest.raises(OSError, match="disk full"):
-        training._plot_curve(tmp_path / "curve.png", [row, row], "t")
+        run_files.plot_curve(tmp_path / "curve.png", [row, row], "t")
     _fail_fsync(monkeypatch)
     with pytest.raises(OSError, match="disk died"):
-        training._write_curve(tmp_path / "curve.csv", [row, row])
+        run_files.write_curve(tmp_path / "curve.csv", [row, row])
     assert (tmp_path / "curve.csv").read_bytes() == csv_before
     assert (tmp_path / "curve.png").read_bytes() == png_before
     assert _names(tmp_path) == ["curve.csv", "curve.png"]
@@ -154,9 +154,9 @@ def test_model_save_and_summary_are_atomic_in_train(tmp_path, monkeypatch):
             _fail_fsync(monkeypatch)
         return real_write_json(path, data, indent)
 
-    import smac_hard_gym.training as training
+    from smac_hard_gym.training import loop
 
-    monkeypatch.setattr(training, "write_json", failing_summary)
+    monkeypatch.setattr(loop, "write_json", failing_summary)
     with pytest.raises(OSError, match="disk died"):
         main(argv)
     assert json.loads((out / "summary.json").read_text()) == {"old": 1}
@@ -165,19 +165,19 @@ def test_model_save_and_summary_are_atomic_in_train(tmp_path, monkeypatch):
 
 
 def test_baselines_writers_are_atomic(tmp_path, monkeypatch):
-    from smac_hard_gym import baselines
+    from smac_hard_gym.training.baselines import results, write_report
 
     rows = [{"map": "3m", "opponent": "smac", "seeds": 1, "mean": 0.5, "std": 0.0, "min": 0.5, "max": 0.5}]
     columns = ("map", "opponent", "seeds", "mean", "std", "min", "max")
-    baselines._write_csv(tmp_path / "results.csv", rows, columns)
+    results.write_csv(tmp_path / "results.csv", rows, columns)
     before = (tmp_path / "results.csv").read_bytes()
     (tmp_path / "report.md").write_text("old report")
     (tmp_path / "runs").mkdir()
     _fail_fsync(monkeypatch)
     with pytest.raises(OSError, match="disk died"):
-        baselines._write_csv(tmp_path / "results.csv", rows * 2, columns)
+        results.write_csv(tmp_path / "results.csv", rows * 2, columns)
     with pytest.raises(OSError, match="disk died"):
-        baselines.write_report(tmp_path, tmp_path / "report.md")
+        write_report(tmp_path, tmp_path / "report.md")
     assert (tmp_path / "results.csv").read_bytes() == before
     assert (tmp_path / "report.md").read_text() == "old report"
     assert not (tmp_path / "results.json").exists()
@@ -188,10 +188,10 @@ def test_baselines_curve_plots_are_atomic(tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
     from matplotlib.figure import Figure
 
-    from smac_hard_gym import baselines
+    from smac_hard_gym.training.baselines import results
 
     curves = {("3m", "smac"): [{0: 0.0, 100: 0.5}]}
-    baselines._plot_curves(tmp_path / "curves", curves)
+    results.plot_curves(tmp_path / "curves", curves)
     before = (tmp_path / "curves" / "3m.png").read_bytes()
 
     def half_savefig(self, path, **kwargs):
@@ -201,7 +201,7 @@ def test_baselines_curve_plots_are_atomic(tmp_path, monkeypatch):
 
     monkeypatch.setattr(Figure, "savefig", half_savefig)
     with pytest.raises(OSError, match="disk full"):
-        baselines._plot_curves(tmp_path / "curves", curves)
+        results.plot_curves(tmp_path / "curves", curves)
     assert (tmp_path / "curves" / "3m.png").read_bytes() == before
     assert _names(tmp_path / "curves") == ["3m.png"]
 

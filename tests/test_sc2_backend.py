@@ -25,7 +25,7 @@ from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.envs.starcraft2 import StarCraft2Env
 from smac_hard_gym.sc2 import MapNotInstalledError, Sc2Backend, Sc2LaunchError, Sc2NotFoundError
 from smac_hard_gym.sc2.compat import portspicker
-from smac_hard_gym.sc2.standin import make_sc2path
+from smac_hard_gym.sc2.testing.standin import make_sc2path
 
 # The fields a raw SC2 unit carries as protobuf floats.
 PROTOCOL_FLOATS = ("x", "y", "health", "shield", "energy", "cooldown", "order_x", "order_y")
@@ -85,7 +85,7 @@ def _game_children() -> list[int]:
                 cmdline = f.read()
         except (FileNotFoundError, ProcessLookupError, IndexError):
             continue
-        if ppid == os.getpid() and (b"SC2_x64" in cmdline or b"testserver" in cmdline):
+        if ppid == os.getpid() and (b"SC2_x64" in cmdline or b"sc2.testing.server" in cmdline):
             found.append(int(entry))
     return found
 

@@ -21,8 +21,8 @@ from smac_hard_gym.sc2.compat import protocol
 from smac_hard_gym.sc2.convert import decode_grid
 from smac_hard_gym.sc2.errors import Sc2LaunchError
 from smac_hard_gym.sc2.launcher import GameSetup, LaunchOptions, launch_games
-from smac_hard_gym.sc2.standin import make_sc2path
-from smac_hard_gym.sc2.testserver import main as server_main
+from smac_hard_gym.sc2.testing.server import main as server_main
+from smac_hard_gym.sc2.testing.standin import make_sc2path
 
 MARINE_ID, CUSTOM_BASE = 48, 1970
 MAP_PATH = "SMAC_HARD_maps/3m.SC2Map"

@@ -51,9 +51,7 @@ except ImportError as err:  # pragma: no cover - the message is the point
 from smac_hard_gym.envs.autoreset import parse_autoreset_mode
 from smac_hard_gym.envs.subproc.batch import concat_obs
 from smac_hard_gym.envs.subproc.env import (
-    ON_WORKER_ERROR,
     SubprocVectorEnv,
-    _default_start_timeout,
     _Worker,
 )
 from smac_hard_gym.envs.subproc.shared_memory import MASK_KEY
@@ -124,34 +122,19 @@ class RayVectorEnv(SubprocVectorEnv):
         ``ray_init_kwargs``: for ``ray.init`` when this env starts Ray.
     """
 
+    _worker_type = _ActorHandle  # SubprocVectorEnv._start_workers builds one per factory
+
     def __init__(self, factories: Sequence[Callable[[], Any]], *, address: str | None = None,
                  autoreset_mode: AutoresetMode | str | None = None, timeout: float = 60.0,
                  start_timeout: float | None = None, on_worker_error: str = "raise", max_failures: int = 3,
                  worker_threads: int = 1, actor_options: dict[str, Any] | None = None,
                  ray_init_kwargs: dict[str, Any] | None = None) -> None:
-        factories = list(factories)
-        if not factories or not all(callable(f) for f in factories):
-            raise ValueError(f"factories must be a non-empty list of callables, got {factories!r}")
-        if on_worker_error not in ON_WORKER_ERROR:
-            raise ValueError(f"on_worker_error must be one of {ON_WORKER_ERROR}, got {on_worker_error!r}")
-        if start_timeout is None:
-            start_timeout = _default_start_timeout()
-        for name, value in (("timeout", timeout), ("start_timeout", start_timeout)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
-        self._workers: list[_ActorHandle] = []
-        self._block = None
+        factories = self._settings(factories, autoreset_mode, timeout, start_timeout, on_worker_error, max_failures,
+                                   worker_threads)
         self._owns_ray = False
         self.start_method = "ray"
-        self.timeout = float(timeout)
-        self.start_timeout = float(start_timeout)
-        self.on_worker_error = on_worker_error
-        self.max_failures = int(max_failures)
-        self.worker_threads = int(worker_threads)
         self.actor_options = _actor_options(actor_options, self.worker_threads)
-        self._requested_mode = None if autoreset_mode is None else parse_autoreset_mode(autoreset_mode)
         self._env_id = uuid.uuid4().hex[:8]
-        self.restarts = 0
         if not ray.is_initialized():
             ray.init(address=address, **{"include_dashboard": False, "log_to_driver": False,
                                          **(ray_init_kwargs or {})})
@@ -167,13 +150,6 @@ class RayVectorEnv(SubprocVectorEnv):
 
     # -----------------------------------------------------------------------------------------------------------
     # The transport: SubprocVectorEnv's hooks, over Ray.
-
-    def _start_workers(self, factories: list[Callable[[], Any]]) -> None:
-        self._workers = [_ActorHandle(i, cloudpickle.dumps(f)) for i, f in enumerate(factories)]
-        for worker in self._workers:
-            self._launch(worker)
-        descriptions = [self._receive_start(w) for w in self._workers]
-        self._configure(descriptions)
 
     def _check_room(self, n: int) -> None:
         """Raise rather than wait forever when the cluster has fewer CPUs than ``n`` actors reserve."""

@@ -2,8 +2,9 @@
 
 MaskablePPO per map x opponent (``smac``, ``default``) x seed, one process per run; the ``smac`` models are then
 evaluated against each script of the map's ``blackbox`` pool; results, CSV tables and curves go under ``--out``
-(see :mod:`smac_hard_gym.baselines`). ``--report PATH`` writes the markdown tables from ``--out`` without training;
-``--experiment mixing`` is the paper's section 4.2 (10m_vs_11m: nearest, weakest, the 50/50 mixture, mean values).
+(see :mod:`smac_hard_gym.training.baselines`). ``--report PATH`` writes the markdown tables from ``--out`` without
+training; ``--experiment mixing`` is the paper's section 4.2 (10m_vs_11m: nearest, weakest, the 50/50 mixture,
+mean values).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from smac_hard_gym.baselines import SweepConfig, plan, report_markdown, run_state, run_sweep, write_report
+    from smac_hard_gym.training.baselines import SweepConfig, plan, report_markdown, run_state, run_sweep, write_report
 
     if args.report:
         path = write_report(args.out, args.report)

@@ -18,63 +18,9 @@ from pathlib import Path
 HELP = "throughput benchmarks: vector envs (side by side with SMAX), the engine alone, or MaskablePPO training"
 
 
-def _ints(text: str) -> list[int]:
-    try:
-        values = [int(v) for v in text.split(",") if v]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated positive ints, got {text!r}") from None
-    if not values or min(values) < 1:
-        raise argparse.ArgumentTypeError(f"expected comma-separated positive ints, got {text!r}")
-    return values
-
-
-def _names(text: str) -> list[str]:
-    values = [v for v in text.split(",") if v]
-    if not values:
-        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
-    return values
-
-
-def _map_sizes(text: str) -> list[tuple[str, int]]:
-    """``3m:4096,8m:256`` -> [("3m", 4096), ("8m", 256)]; an empty string gives none."""
-    out = []
-    for item in (v for v in text.split(",") if v):
-        name, _, size = item.partition(":")
-        if not name or not size.isdigit() or int(size) < 1:
-            raise argparse.ArgumentTypeError(f"expected MAP:N[,MAP:N...] with N a positive int, got {text!r}")
-        out.append((name, int(size)))
-    return out
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = 0.0
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
-    return value
-
-
-def _count(text: str) -> int:
-    if not text.isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive int, got {text!r}")
-    return int(text)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from smac_hard_gym.bench import (
-        DEFAULT_ENVS_PER_WORKER,
-        DEFAULT_MAPS,
-        DEFAULT_NUM_ENVS,
-        DEFAULT_RAY_ACTORS,
-        DEFAULT_RAY_MAPS,
-        DEFAULT_SECTIONS,
-        DEFAULT_SUBPROC_MAPS,
-        DEFAULT_WORKERS,
-        OPPONENTS,
-        SECTIONS,
-    )
+    from smac_hard_gym.bench import suite  # the defaults and choices of `bench vector`
+    from smac_hard_gym.bench.arguments import comma_ints, comma_names, map_sizes, positive_int, positive_seconds
 
     def csv(values: tuple) -> str:
         return ",".join(map(str, values))
@@ -83,42 +29,45 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     vec = sub.add_parser("vector", help="env-steps/s through the gymnasium vector API (and SMAX with --peer smax)",
                          description="Env-steps/s through the gymnasium vector API with random legal actions, "
                                      "resets included; medians of repeats, compile time apart.")
-    vec.add_argument("--maps", type=_names, default=list(DEFAULT_MAPS), help=f"default {csv(DEFAULT_MAPS)}")
-    vec.add_argument("--num-envs", type=_ints, default=list(DEFAULT_NUM_ENVS),
-                     help=f"battles per native vector env (default {csv(DEFAULT_NUM_ENVS)})")
-    vec.add_argument("--opponent", choices=OPPONENTS, default="base",
+    vec.add_argument("--maps", type=comma_names, default=list(suite.DEFAULT_MAPS),
+                     help=f"default {csv(suite.DEFAULT_MAPS)}")
+    vec.add_argument("--num-envs", type=comma_ints, default=list(suite.DEFAULT_NUM_ENVS),
+                     help=f"battles per native vector env (default {csv(suite.DEFAULT_NUM_ENVS)})")
+    vec.add_argument("--opponent", choices=suite.OPPONENTS, default="base",
                      help="opponent of the main grid: SMAC's base, or the map's default SMAC-HARD mixture")
-    vec.add_argument("--workers", type=_ints, default=list(DEFAULT_WORKERS),
-                     help=f"subprocess workers (default {csv(DEFAULT_WORKERS)})")
-    vec.add_argument("--envs-per-worker", type=_ints, default=list(DEFAULT_ENVS_PER_WORKER),
-                     help=f"battles per subprocess worker, K (default {csv(DEFAULT_ENVS_PER_WORKER)})")
-    vec.add_argument("--subproc-maps", type=_names, default=list(DEFAULT_SUBPROC_MAPS),
-                     help=f"maps of the subprocess runs (default {csv(DEFAULT_SUBPROC_MAPS)})")
-    vec.add_argument("--opponent-num-envs", type=_count, default=256,
+    vec.add_argument("--workers", type=comma_ints, default=list(suite.DEFAULT_WORKERS),
+                     help=f"subprocess workers (default {csv(suite.DEFAULT_WORKERS)})")
+    vec.add_argument("--envs-per-worker", type=comma_ints, default=list(suite.DEFAULT_ENVS_PER_WORKER),
+                     help=f"battles per subprocess worker, K (default {csv(suite.DEFAULT_ENVS_PER_WORKER)})")
+    vec.add_argument("--subproc-maps", type=comma_names, default=list(suite.DEFAULT_SUBPROC_MAPS),
+                     help=f"maps of the subprocess runs (default {csv(suite.DEFAULT_SUBPROC_MAPS)})")
+    vec.add_argument("--opponent-num-envs", type=positive_int, default=256,
                      help="battles of the base-vs-default opponent comparison (default 256)")
-    vec.add_argument("--memory", type=_map_sizes, default=[("3m", 4096)],
+    vec.add_argument("--memory", type=map_sizes, default=[("3m", 4096)],
                      help="MAP:N configurations whose peak RSS is read in a fresh process (default 3m:4096)")
-    vec.add_argument("--profile", type=_map_sizes, default=[],
+    vec.add_argument("--profile", type=map_sizes, default=[],
                      help="MAP:N configurations to profile (default: each SMAX map at its best native batch)")
-    vec.add_argument("--sections", type=_names, default=list(DEFAULT_SECTIONS),
-                     help=f"subset of {csv(SECTIONS)} (default {csv(DEFAULT_SECTIONS)}; ray needs the [ray] extra)")
-    vec.add_argument("--ray-maps", type=_names, default=list(DEFAULT_RAY_MAPS),
-                     help=f"maps of the ray section (default {csv(DEFAULT_RAY_MAPS)})")
-    vec.add_argument("--ray-actors", type=_ints, default=list(DEFAULT_RAY_ACTORS),
+    vec.add_argument("--sections", type=comma_names, default=list(suite.DEFAULT_SECTIONS),
+                     help=f"subset of {csv(suite.SECTIONS)} (default {csv(suite.DEFAULT_SECTIONS)}; ray needs the "
+                          "[ray] extra)")
+    vec.add_argument("--ray-maps", type=comma_names, default=list(suite.DEFAULT_RAY_MAPS),
+                     help=f"maps of the ray section (default {csv(suite.DEFAULT_RAY_MAPS)})")
+    vec.add_argument("--ray-actors", type=comma_ints, default=list(suite.DEFAULT_RAY_ACTORS),
                      help=f"Ray actor counts, each against as many subprocess workers (default "
-                          f"{csv(DEFAULT_RAY_ACTORS)})")
-    vec.add_argument("--ray-envs-per-actor", type=_count, default=256,
+                          f"{csv(suite.DEFAULT_RAY_ACTORS)})")
+    vec.add_argument("--ray-envs-per-actor", type=positive_int, default=256,
                      help="battles per Ray actor (and subprocess worker) in the ray section, K (default 256)")
     vec.add_argument("--ray-address", default=None, metavar="ADDRESS",
                      help="run the ray section on this Ray cluster (default: a local Ray started for it)")
-    vec.add_argument("--seconds", type=_positive, default=1.0, help="seconds per timed window (default 1)")
-    vec.add_argument("--repeats", type=_count, default=3, help="timed windows; the median is reported (default 3)")
+    vec.add_argument("--seconds", type=positive_seconds, default=1.0, help="seconds per timed window (default 1)")
+    vec.add_argument("--repeats", type=positive_int, default=3,
+                     help="timed windows; the median is reported (default 3)")
     vec.add_argument("--seed", type=int, default=0)
     vec.add_argument("--peer", choices=["smax"], default=None,
                      help="also run SMAX (JaxMARL) on the maps it has, in the same run, through its own Python")
     vec.add_argument("--peer-python", default=None, metavar="PATH",
                      help="the Python with jaxmarl (default $SMAX_PYTHON, else smax-venv/ beside the repository)")
-    vec.add_argument("--numba-threads", type=_count, default=None, metavar="N",
+    vec.add_argument("--numba-threads", type=positive_int, default=None, metavar="N",
                      help="threads of the engine's parallel kernels here (default: numba's, one per core); "
                           "subprocess workers always use one")
     vec.add_argument("--json", default=None, metavar="PATH",
@@ -133,17 +82,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     eng = sub.add_parser("engine", help="the battle engine alone, random commands, resets counted")
     eng.add_argument("--map", default="3m", help="map name, or comma-separated names (default 3m)")
-    eng.add_argument("--batch", type=_ints, default=[4096], help="battles per batch, comma-separated (default 4096)")
+    eng.add_argument("--batch", type=comma_ints, default=[4096],
+                     help="battles per batch, comma-separated (default 4096)")
     eng.add_argument("--steps", type=int, default=200, help="timed steps per repeat (default 200)")
     eng.add_argument("--repeats", type=int, default=3, help="timed repeats; the median is reported (default 3)")
     eng.add_argument("--json", default=None, metavar="PATH", help="write results as JSON")
 
     tr = sub.add_parser("train", help="MaskablePPO training steps/s, sb3-contrib's policy against train's joint one "
                                       "(needs the [train] extra)")
-    tr.add_argument("--map", type=_names, default=["8m"], help="map name, or comma-separated names (default 8m)")
-    tr.add_argument("--timesteps", type=_count, default=8192,
+    tr.add_argument("--map", type=comma_names, default=["8m"], help="map name, or comma-separated names (default 8m)")
+    tr.add_argument("--timesteps", type=positive_int, default=8192,
                     help="env steps per timed round, rounded up to whole rollouts of 2048 (default 8192)")
-    tr.add_argument("--rounds", type=_count, default=3, help="timed rounds per variant; the median is reported "
+    tr.add_argument("--rounds", type=positive_int, default=3, help="timed rounds per variant; the median is reported "
                                                                "(default 3)")
     tr.add_argument("--json", default=None, metavar="PATH", help="write results as JSON")
 

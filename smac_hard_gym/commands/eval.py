@@ -5,14 +5,16 @@
 The mixture row is the pool's expected win rate: the scripts' win rates weighted by the pool's probabilities.
 
 By default every script plays the test battles that ``train`` evaluates on (seeded from
-:data:`~smac_hard_gym.training.TEST_SEED_BASE`, disjoint from every run's training battles), so a model's win rate
-against a script here is the one ``train`` reported against that script alone, with the same episodes. Each row
-gives the episodes, the standard error and a 95% Wilson interval of its win rate.
+:data:`~smac_hard_gym.training.protocol.TEST_SEED_BASE`, disjoint from every run's training battles), so a model's
+win rate against a script here is the one ``train`` reported against that script alone, with the same episodes. Each
+row gives the episodes, the standard error and a 95% Wilson interval of its win rate. The evaluation itself is
+:func:`smac_hard_gym.training.evaluation.evaluate_scripts`; this module parses options and prints the table.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -35,15 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from smac_hard_gym.files import write_json
-    from smac_hard_gym.training import (
-        TEST_SEED_BASE,
-        eval_seeds,
-        evaluate_scripts,
-        format_table,
-        load_run_config,
-        resolve_opponents,
-        training_seeds,
-    )
+    from smac_hard_gym.training.evaluation import evaluate_scripts, resolve_opponents
+    from smac_hard_gym.training.protocol import TEST_SEED_BASE, eval_seeds, training_seeds
+    from smac_hard_gym.training.run_files import load_run_config
 
     model_path = Path(args.model)
     if not model_path.is_file():
@@ -70,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
     import torch
 
-    from smac_hard_gym.training import load_model
+    from smac_hard_gym.training.run_files import load_model
 
     torch.set_num_threads(1)
     model = load_model(model_path)  # a file that is not a model: one ValueError naming it
@@ -110,3 +106,9 @@ def _check_fits(model: Any, map_name: str, env_kwargs: dict, trained_on: str | N
                              f"{map_name}")
     finally:
         env.close()
+
+
+def format_table(rows: Sequence[tuple[str, ...]]) -> str:
+    """Left-aligned text columns."""
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip() for row in rows)

@@ -65,11 +65,10 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from smac_hard_gym.backend import BACKENDS, Backend, make_backend
-from smac_hard_gym.engine.direct import compiled_entry
 from smac_hard_gym.engine.state import BLUE, RED, Commands
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents import Script, SideView, make_opponent
-from smac_hard_gym.smac.actions import available_actions, raise_unavailable, validate_actions
+from smac_hard_gym.smac.actions import raise_unavailable, validate_actions
 from smac_hard_gym.smac.features import (
     BLUE_WON,
     DRAW,
@@ -79,7 +78,15 @@ from smac_hard_gym.smac.features import (
     SideFeatures,
     SmacOptions,
 )
-from smac_hard_gym.smac.kernels import bind, check_decode_batch, finish_encode
+from smac_hard_gym.smac.kernels import (
+    Counters,
+    DirectKernel,
+    StepInputs,
+    StepOutcome,
+    check_decode_batch,
+    finish_encode,
+    is_plain,
+)
 from smac_hard_gym.units import STATS, WEAPON_HEAL, S
 
 __all__ = ["TwoPlayerCore", "StepResult", "MODES", "SELF_PLAY_NAME", "RED", "BLUE"]
@@ -147,34 +154,8 @@ class _OpponentStats:
         return totals
 
 
+# Actions of the one type the step's direct kernel calls compile for (what validation and every env layer produce).
 _INT64 = np.dtype(np.int64)
-
-
-def _plain(actions: np.ndarray) -> bool:
-    """Actions of the one type the step's direct kernel calls were compiled for: a writable, aligned, C-contiguous
-    int64 (B, n) array (what validation and every env layer produce)."""
-    if type(actions) is not np.ndarray or actions.dtype is not _INT64 or actions.ndim != 2:
-        return False
-    flags = actions.flags
-    return flags.c_contiguous and flags.writeable and flags.aligned
-
-
-class _DirectKernel:
-    """One of a step's kernels, called past numba's dispatcher (``compiled_entry``) once a call with ``plain``
-    actions has compiled it. Every other argument at the core's call sites is the core's own, allocated the same
-    way each step; other actions go through the dispatcher."""
-
-    def __init__(self, kernel: Any) -> None:
-        self.kernel = kernel
-        self.entry: Any = None
-
-    def __call__(self, plain: bool, *args: Any) -> Any:
-        if plain and self.entry is not None:
-            return self.entry(*args)
-        result = self.kernel(*args)
-        if plain:
-            self.entry = compiled_entry(self.kernel, args)
-        return result
 
 
 class TwoPlayerCore:
@@ -185,6 +166,8 @@ class TwoPlayerCore:
                  step_mul: int = 8, options: SmacOptions | None = None, seed: int | None = None,
                  backend_options: dict | None = None, opponent_isolation: str | None = None, encode_state: bool = True,
                  episode_limit: int | None = None, red_script: Any = None) -> None:
+        """See the module docstring. Keyword options, each with a default, rather than an options object: every env
+        layer passes the subset it exposes by name, and SMAC's own options already travel as one ``SmacOptions``."""
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if not isinstance(batch_size, (int, np.integer)) or isinstance(batch_size, bool) or batch_size < 1:
@@ -204,12 +187,9 @@ class TwoPlayerCore:
             SideFeatures(self.spec, RED, self.options), SideFeatures(self.spec, BLUE, self.options))
         self.rewards = RewardFunction(*self.features, self.options)
         self.n_red, self.n_blue = self.features[RED].n_agents, self.features[BLUE].n_agents
-        utype = self.features[RED].utype
-        # The way up's constants: red's features, the reward options, the outcome rule and the limit, by name.
-        self._up_args = bind(finish_encode, {
-            **self.features[RED].constants, **self.rewards.constants,
-            "fighter": STATS[utype, S["weapon"]] != WEAPON_HEAL, "n_red": self.n_red,
-            "step_limit": self.episode_limit})
+        # The way up's rules: a side is beaten when no unit of it that fights is alive; the reward options; the limit.
+        self._rules = self.rewards.rules(STATS[self.features[RED].utype, S["weapon"]] != WEAPON_HEAL,
+                                         self.episode_limit)
 
         self.opponent: Script | None = None
         if mode == "script":
@@ -252,13 +232,15 @@ class TwoPlayerCore:
         self._encoded: list[tuple | None] = [None, None]  # each side's (masks, obs, state or None) of the state
         self._avail_cache: list[np.ndarray | None] = [None, None]  # its masks alone, when only they were asked for
         self._views: list[SideView | None] = [None, None]
-        self._no_replaced = np.zeros(b, dtype=np.int64)
+        self._no_replaced = np.zeros(b, dtype=np.int64)  # result.replaced without replace_invalid
+        self._reject = np.zeros(0, dtype=np.int64)  # check_decode_batch's "reject unavailable actions"
         self._no_restarts = np.zeros(b, dtype=bool)
         self._no_actions = np.zeros((0, self.n_blue), dtype=np.int64)  # blue's actions when a script plays it
         self._no_red_actions = np.zeros((0, self.n_red), dtype=np.int64)  # red's, when red_script plays it
+        self._counters = Counters(self.episode_step, self.done, *self.last_action)  # the way up updates them
         # The way up, and each side's way down, called past numba's dispatcher once compiled.
-        self._finish_encode = _DirectKernel(finish_encode)
-        self._check_decode = (_DirectKernel(check_decode_batch), _DirectKernel(check_decode_batch))
+        self._finish_encode = DirectKernel(finish_encode)
+        self._check_decode = (DirectKernel(check_decode_batch), DirectKernel(check_decode_batch))
         self._error: BaseException | None = None
         self._closed = False
         self.reset(seed=seed)
@@ -320,8 +302,9 @@ class TwoPlayerCore:
         Actions are checked (:func:`~smac_hard_gym.smac.actions.validate_actions`, then availability in the battles
         that step). An unavailable red action raises :class:`~smac_hard_gym.smac.actions.InvalidActionError`
         (message ending with ``hint``), or with ``replace_invalid`` is replaced by the agent's first available one
-        and counted in ``result.replaced``. A rejected step changes nothing. ``checked``: red's actions are already
-        a fresh int64 array ``(B, n_red)`` of in-range values (an env layer validated them): not validated again.
+        and counted in ``result.replaced``. A rejected step changes nothing. ``checked``: the actions given (red's,
+        and blue's in self-play) are already fresh int64 arrays ``(B, n)`` of in-range values (an env layer
+        validated them): not validated again, so every API validates once.
         """
         self._check_open()
         if self._error is not None:
@@ -338,7 +321,7 @@ class TwoPlayerCore:
         commands.clear()
         replaced = np.zeros(size, dtype=np.int64) if replace_invalid else self._no_replaced
         if self.red_script is None:
-            red = self._decode(RED, red_actions, active, replace_invalid, replaced, hint, checked)
+            red = self._decode(RED, red_actions, active, replaced if replace_invalid else self._reject, hint, checked)
         elif red_actions is not None:
             raise ValueError("red is played by red_script: step() takes no red actions (pass None)")
         else:
@@ -346,7 +329,7 @@ class TwoPlayerCore:
             self._script_call(self.red_script.act, RED, commands, active)
         blue = self._no_actions
         if self.mode == "self-play":
-            blue = self._decode(BLUE, blue_actions, active, False, np.zeros(size, dtype=np.int64), "", False)
+            blue = self._decode(BLUE, blue_actions, active, self._reject, "", checked)
         if hook is not None:
             clock = self._lap(hook, "actions", clock)
         if self.opponent is not None:
@@ -370,13 +353,16 @@ class TwoPlayerCore:
         terminated, truncated = np.empty(size, bool), np.empty(size, bool)
         dead_red, dead_blue = np.empty(size, np.int64), np.empty(size, np.int64)
         feats = self.features[RED]
-        avail, obs, global_state = feats.outputs(size, self.encode_state)
-        args = (prev_hs, prev_alive, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                state.cooldown, active, restarted, red, blue, self.last_action[RED], self.last_action[BLUE],
-                self.episode_step, self.done, outcome, reward, terminated, truncated, dead_red, dead_blue, avail, obs,
-                global_state, *self._up_args)
-        n_ended = self._finish_encode(_plain(red) and (blue is self._no_actions or _plain(blue)), *args)
-        global_state = feats.finish_state(obs, global_state) if self.encode_state else None
+        out = feats.outputs(size, self.encode_state)
+        avail, obs = out.avail, out.obs
+        units, plain = feats.kernel_units(state)
+        n_ended = self._finish_encode(
+            plain and is_plain(red, _INT64, 2) and (blue is self._no_actions or is_plain(blue, _INT64, 2)),
+            units,
+            StepInputs(prev_hs, prev_alive, active, restarted, red, blue), self._counters,
+            StepOutcome(outcome, reward, terminated, truncated, dead_red, dead_blue), out, feats.constants,
+            feats.columns, self._rules)
+        global_state = feats.finish_state(obs, out.state) if self.encode_state else None
         self._encoded[RED] = (avail, obs, global_state)
         if n_ended:
             ended = terminated | truncated
@@ -394,17 +380,18 @@ class TwoPlayerCore:
             self._error = err
             raise
 
-    def _decode(self, side: int, actions: Any, active: np.ndarray, replace: bool, replaced: np.ndarray,
-                hint: str, checked: bool) -> np.ndarray:
-        """One side's actions, validated, checked against its masks and written as engine commands (one kernel)."""
+    def _decode(self, side: int, actions: Any, active: np.ndarray, replaced: np.ndarray, hint: str,
+                checked: bool) -> np.ndarray:
+        """One side's actions, validated, checked against its masks and written as engine commands (one kernel);
+        unavailable ones are replaced and counted in ``replaced`` (B,), or rejected when it is empty."""
         feats = self.features[side]
         acts = actions if checked else validate_actions(actions, (self.batch_size, feats.n_agents), feats.n_actions,
                                                         SIDE_NAMES[side])
         avail = self.avail_actions(side)
-        state, cmd = self.backend.state, self.commands
-        args = (acts, avail, active, bool(replace), replaced, state.x, state.y, cmd.kind, cmd.target, cmd.x, cmd.y,
-                *feats.decode_args)
-        bad = self._check_decode[side](_plain(acts), *args)
+        state = self.backend.state
+        units, plain = feats.kernel_units(state)
+        bad = self._check_decode[side](plain and is_plain(acts, _INT64, 2), acts, avail, active, replaced, units.x,
+                                       units.y, self.commands, feats.constants.actions)
         if bad >= 0:
             raise_unavailable(feats, acts, avail, bad, hint)
         return acts
@@ -424,7 +411,7 @@ class TwoPlayerCore:
         if self._encoded[side] is not None:
             return self._encoded[side][0]
         if self._avail_cache[side] is None:
-            self._avail_cache[side] = available_actions(self.features[side], self.backend.state)
+            self._avail_cache[side] = self.features[side].available_actions(self.backend.state)
         return self._avail_cache[side]
 
     def observations(self, side: int = RED, out: np.ndarray | None = None) -> np.ndarray:

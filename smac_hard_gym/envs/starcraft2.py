@@ -110,6 +110,8 @@ class StarCraft2Env:
         backend_options: dict | None = None,
         opponent_isolation: str | None = None,
     ) -> None:
+        """Every keyword of SMAC's own ``StarCraft2Env`` constructor, in its order, so that code written for SMAC
+        runs unchanged (hence the long list), then smac-hard-gym's own (``mode`` onwards)."""
         if mode not in _MODE_ALIASES:
             raise ValueError(f"mode must be one of {sorted(_MODE_ALIASES)}, got {mode!r}")
         if heuristic_ai or heuristic_rest:
@@ -210,7 +212,7 @@ class StarCraft2Env:
                 raise ValueError(f"mode 'self-play' steps with [red_actions, blue_actions], got {actions!r}")
             red = validate_actions(actions[0], (self.n_agents,), self.n_actions, "red")
             blue = validate_actions(actions[1], (self.n_enemies,), self.n_actions_list[BLUE], "blue")
-            result = self._core.step(red[None], blue[None])
+            result = self._core.step(red[None], blue[None], checked=True)
         else:
             result = self._core.step(validate_actions(actions, (self.n_agents,), self.n_actions, "red")[None],
                                      checked=True)
@@ -285,13 +287,12 @@ class StarCraft2Env:
             "enemies": state[feats.state_enemy_offset:feats.state_action_offset].reshape(
                 feats.n_enemies, feats.enemy_state_feats).copy(),
         }
-        col = feats.state_action_offset
-        if feats.options.state_last_action:
-            width = feats.n_agents * feats.n_actions
+        cols = feats.columns
+        if cols.state_last_action >= 0:
+            col, width = cols.state_last_action, feats.n_agents * feats.n_actions
             out["last_action"] = state[col:col + width].reshape(feats.n_agents, feats.n_actions).copy()
-            col += width
-        if feats.options.state_timestep_number:
-            out["timestep"] = state[col:col + 1].copy()
+        if cols.state_timestep >= 0:
+            out["timestep"] = state[cols.state_timestep:cols.state_timestep + 1].copy()
         return out
 
     def get_avail_actions(self, player_id: int = RED) -> list[list[int]]:

@@ -71,6 +71,8 @@ class NativeVectorEnv(VectorEnv):
                  render_battles: int | Sequence[int] | str = 0, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
                  opponent_isolation: str | None = None, **smac_options: Any) -> None:
+        """A public constructor with gymnasium-style keyword options (what ``gymnasium.make_vec`` passes through by
+        name), hence the long list; SMAC's options may come as ``options`` or as keywords."""
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
         check_invalid_action(invalid_action)

@@ -5,8 +5,8 @@
 - :mod:`.launcher`: starting and joining games with bounded time and retries; nothing left behind.
 - :mod:`.convert`: raw units <-> battle state, commands -> raw unit commands; :mod:`.abilities`: the id tables.
 - :mod:`.maps`: where the game and SMAC-HARD's maps live; ``smac-hard-gym maps install``.
-- :mod:`.testserver` / :mod:`.testgame` / :mod:`.standin`: a protocol-level test server driven by the native
-  engine and a stand-in ``SC2_x64`` in a temporary SC2PATH, for testing without the game.
+- :mod:`.testing` (not part of the backend): a protocol-level test server driven by the native engine and a
+  stand-in ``SC2_x64`` in a temporary SC2PATH, for testing without the game.
 
 Only :mod:`.maps` and :mod:`.errors` work without the extra; the rest import pysc2_evolved on first use.
 """
@@ -34,7 +34,7 @@ def __getattr__(name: str):  # the backend and the stand-in need the [sc2] extra
 
         return Sc2Backend
     if name == "make_sc2path":
-        from smac_hard_gym.sc2.standin import make_sc2path
+        from smac_hard_gym.sc2.testing.standin import make_sc2path
 
         return make_sc2path
     raise AttributeError(f"module 'smac_hard_gym.sc2' has no attribute {name!r}")

@@ -36,7 +36,6 @@ from smac_hard_gym.engine.state import BattleState, Commands
 from smac_hard_gym.smac.features import SIDE_NAMES, SideFeatures
 from smac_hard_gym.smac.kernels import (
     N_ACTIONS_NO_ATTACK,
-    available_actions_batch,
     check_decode_batch,
     first_invalid_action,
 )
@@ -189,11 +188,7 @@ def available_actions(feats: SideFeatures, state: BattleState, out: np.ndarray |
                       rows: np.ndarray | None = None) -> np.ndarray:
     """Available actions of every agent of ``feats``'s side: bool ``(B, n_agents, n_actions)`` (of battles ``rows``
     only, when given: ``(len(rows), n_agents, n_actions)``)."""
-    rows = feats.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
-    if out is None:
-        out = np.empty((len(rows), feats.n_agents, feats.n_actions), dtype=bool)
-    available_actions_batch(rows, state.x, state.y, state.alive, out, *feats.avail_args)
-    return out
+    return feats.available_actions(state, out, rows)
 
 
 def check_actions(feats: SideFeatures, actions: Any, avail: np.ndarray, active: np.ndarray | None = None,
@@ -235,5 +230,5 @@ def decode_actions(feats: SideFeatures, state: BattleState, actions: np.ndarray,
     batch = state.alive.shape[0]
     acts = validate_actions(actions, (batch, feats.n_agents), feats.n_actions, SIDE_NAMES[feats.side])
     anything = np.ones((batch, feats.n_agents, feats.n_actions), dtype=bool)
-    check_decode_batch(acts, anything, np.ascontiguousarray(active, dtype=bool), False, np.zeros(batch, np.int64),
-                       state.x, state.y, commands.kind, commands.target, commands.x, commands.y, *feats.decode_args)
+    check_decode_batch(acts, anything, np.ascontiguousarray(active, dtype=bool), np.zeros(0, np.int64), state.x,
+                       state.y, commands, feats.constants.actions)

@@ -73,6 +73,8 @@ _STANDARD_TYPE_ORDER = {
     "bane": ("baneling", "zergling"),
 }
 
+_INT64, _BOOL = np.dtype(np.int64), np.dtype(np.bool_)
+
 _SMAC_MAX_COOLDOWN = np.array([u.smac_max_cooldown for u in UNITS], dtype=np.float64)
 
 
@@ -174,6 +176,26 @@ def last_action_onehot(last_action: np.ndarray, n_actions: int) -> np.ndarray:
     return (last_action[..., None] == np.arange(n_actions)).astype(np.float32)
 
 
+# A Columns field names its feature as the feature-name lists do, except these (the first column of a group).
+_COLUMN_NAMES = {"type": "type_0", "last_action": "last_action_0", "cooldown": "energy/cooldown"}
+
+
+def _column(names: list[str], name: str) -> int:
+    """Where ``name`` is in ``names``; -1 when the options leave it out."""
+    return names.index(name) if name in names else -1
+
+
+def _row_columns(prefix: str, names: list[str]) -> dict[str, int]:
+    """The :class:`~smac_hard_gym.smac.kernels.Columns` fields ``{prefix}_{feature}`` of one row's name list:
+    each feature's column in the row (the row's offset and width are the caller's)."""
+    columns = {}
+    for field in fk.Columns._fields:
+        feature = field.removeprefix(f"{prefix}_")
+        if feature != field and feature not in ("offset", "feats"):
+            columns[field] = _column(names, _COLUMN_NAMES.get(feature, feature))
+    return columns
+
+
 class SideFeatures:
     """SMAC's features from one side's point of view on one map, for a batch of battles.
 
@@ -272,36 +294,39 @@ class SideFeatures:
 
         self.heal_target_ok = ~self.own_healer[:self.n_heal_targets]
         self._all_rows = np.arange(0, dtype=np.int64)
+        self._units: tuple[BattleState | None, fk.UnitArrays | None, bool] = (None, None, False)  # the last state's
+        # The kernels called on every step of some APIs (blue's encoding in self-play, a policy opponent's), past
+        # numba's dispatcher once compiled for plain arrays.
+        self._encode_batch = fk.DirectKernel(fk.encode_batch)
+        self._available_actions_batch = fk.DirectKernel(fk.available_actions_batch)
 
-        # The kernels' constant arguments, by the kernels' parameter names (fk.bind orders them per kernel).
-        self.constants: dict[str, object] = dict(
-            own_lo=self.own.start, enemy_lo=self.enemy.start, healer=self.own_healer,
-            heal_target_ok=self.heal_target_ok, n_heal_targets=self.n_heal_targets, pathable=self.pathable,
-            heights=self.terrain_height, half_move=self.move_amount / 2.0, move_amount=self.move_amount,
-            own_health_max=self.own_health_max, own_shield_max=self.own_shield_max,
+        # The kernels' inputs: this side's constants, and every column from the name lists above.
+        self.constants = fk.SideConstants(
+            actions=fk.ActionConstants(own_lo=self.own.start, enemy_lo=self.enemy.start, healer=self.own_healer,
+                                       heal_target_ok=self.heal_target_ok, pathable=self.pathable,
+                                       move_amount=self.move_amount),
+            heights=self.terrain_height, own_health_max=self.own_health_max, own_shield_max=self.own_shield_max,
             enemy_health_max=self.enemy_health_max, enemy_shield_max=self.enemy_shield_max,
             own_onehot=self.own_onehot, enemy_onehot=self.enemy_onehot, max_cooldown=self.own_max_cooldown,
-            probe_dx=self._probe_dx, probe_dy=self._probe_dy, episode_limit=float(self.episode_limit),
-            obs_flags=fk.pack(fk.OBS_FLAGS, all_health=opt.obs_all_health, own_health=opt.own_health,
-                              shield_ally=self.shield_bits_ally, shield_enemy=self.shield_bits_enemy,
-                              last_action=opt.obs_last_action, pathing=opt.obs_pathing_grid,
-                              height=opt.obs_terrain_height, timestep=opt.obs_timestep_number),
-            obs_layout=fk.pack(fk.OBS_LAYOUT, enemy_offset=self.enemy_offset, ally_offset=self.ally_offset,
-                               own_offset=self.own_offset, enemy_feats=self.enemy_feats, ally_feats=self.ally_feats),
-            state_flags=fk.pack(fk.STATE_FLAGS, shield_ally=self.shield_bits_ally,
-                                shield_enemy=self.shield_bits_enemy, last_action=opt.state_last_action,
-                                timestep=opt.state_timestep_number),
-            state_layout=fk.pack(fk.STATE_LAYOUT, ally_feats=self.ally_state_feats,
-                                 enemy_feats=self.enemy_state_feats, enemy_offset=self.state_enemy_offset,
-                                 action_offset=self.state_action_offset, n_actions=self.n_actions),
-            frame=fk.pack(fk.FRAME, np.float64, centre_x=self.center[0], centre_y=self.center[1],
-                          width=self.max_distance[0], height=self.max_distance[1]),
-        )
-        self.avail_args = fk.bind(fk.available_actions_batch, self.constants)
-        self.obs_args = fk.bind(fk.observations_batch, self.constants)
-        self.state_args = fk.bind(fk.global_state_batch, self.constants)
-        self.encode_args = fk.bind(fk.encode_batch, self.constants)
-        self.decode_args = fk.bind(fk.check_decode_batch, self.constants)
+            probe_dx=self._probe_dx, probe_dy=self._probe_dy, centre_x=self.center[0], centre_y=self.center[1],
+            map_width=self.max_distance[0], map_height=self.max_distance[1],
+            episode_limit=float(self.episode_limit))
+        self.columns = self._columns()
+
+    def _columns(self) -> fk.Columns:
+        """Every column the kernels write, looked up in the feature-name lists."""
+        state_names = self._state_table_names()
+        return fk.Columns(
+            move=_column(self.move_names, MOVE_NAMES[0]), pathing=_column(self.move_names, "pathing_n2"),
+            height=_column(self.move_names, "height_n2"),
+            enemy_offset=self.enemy_offset, enemy_feats=self.enemy_feats, **_row_columns("enemy", self.enemy_names),
+            ally_offset=self.ally_offset, ally_feats=self.ally_feats, **_row_columns("ally", self.ally_names),
+            own_offset=self.own_offset, **_row_columns("own", self.own_names),
+            state_ally_feats=self.ally_state_feats, **_row_columns("state_ally", self.ally_state_names),
+            state_enemy_offset=self.state_enemy_offset, state_enemy_feats=self.enemy_state_feats,
+            **_row_columns("state_enemy", self.enemy_state_names),
+            state_last_action=_column(state_names, "ally_0_last_action_0"),
+            state_timestep=_column(state_names, "timestep"))
 
     def __repr__(self) -> str:
         return (f"SideFeatures(map={self.spec.name!r}, side={SIDE_NAMES[self.side]!r}, "
@@ -322,6 +347,11 @@ class SideFeatures:
         """Name of every global-state column."""
         if self.options.obs_instead_of_state:
             return [f"agent_{i}_{f}" for i in range(self.n_agents) for f in self.obs_feature_names()]
+        return self._state_table_names()
+
+    def _state_table_names(self) -> list[str]:
+        """The global state's columns as the state kernel writes them (what the state is unless
+        ``obs_instead_of_state``)."""
         names = [f"ally_{i}_{f}" for i in range(self.n_agents) for f in self.ally_state_names]
         names += [f"enemy_{e}_{f}" for e in range(self.n_enemies) for f in self.enemy_state_names]
         if self.options.state_last_action:
@@ -351,8 +381,8 @@ class SideFeatures:
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         if out is None:
             out = np.empty((len(rows), self.n_agents, self.obs_size), dtype=np.float32)
-        fk.observations_batch(rows, state.x, state.y, state.alive, state.health, state.shield, avail, last_action,
-                              episode_step, out, *self.obs_args)
+        fk.observations_batch(rows, self.kernel_units(state)[0], avail, last_action, episode_step, out, self.constants,
+                              self.columns)
         return out
 
     def global_state(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
@@ -374,8 +404,8 @@ class SideFeatures:
             return out
         if out is None:
             out = np.empty((len(rows), self.state_size), dtype=np.float32)
-        fk.global_state_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                              state.cooldown, last_action, episode_step, out, *self.state_args)
+        fk.global_state_batch(rows, self.kernel_units(state)[0], last_action, episode_step, out, self.constants,
+                              self.columns)
         return out
 
     def encode(self, state: BattleState, last_action: np.ndarray, episode_step: np.ndarray,
@@ -383,18 +413,44 @@ class SideFeatures:
         """Available actions, observations and global state in one kernel call (fresh arrays, the values of
         :func:`~smac_hard_gym.smac.actions.available_actions`, :meth:`observations` and :meth:`global_state`)."""
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
-        avail, obs, global_state = self.outputs(len(rows), with_state=True)
-        fk.encode_batch(rows, state.x, state.y, state.alive, state.health, state.shield, state.energy,
-                        state.cooldown, last_action, episode_step, avail, obs, global_state, *self.encode_args)
-        return avail, obs, self.finish_state(obs, global_state)
+        out = self.outputs(len(rows), with_state=True)  # plain, as every output allocated here
+        units, plain = self.kernel_units(state)
+        plain = (plain and fk.is_plain(rows, _INT64, 1) and fk.is_plain(last_action, _INT64, 2)
+                 and fk.is_plain(episode_step, _INT64, 1))
+        self._encode_batch(plain, rows, units, last_action, episode_step, out, self.constants,
+                           self.columns)
+        return out.avail, out.obs, self.finish_state(out.obs, out.state)
 
-    def outputs(self, batch: int, with_state: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def available_actions(self, state: BattleState, out: np.ndarray | None = None,
+                          rows: np.ndarray | None = None) -> np.ndarray:
+        """Available actions of every agent: bool ``(B, n_agents, n_actions)`` (of battles ``rows`` only, when given:
+        ``(len(rows), n_agents, n_actions)``); see :mod:`smac_hard_gym.smac.actions`."""
+        rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
+        if out is None:
+            out = np.empty((len(rows), self.n_agents, self.n_actions), dtype=bool)
+        units, plain = self.kernel_units(state)
+        plain = plain and fk.is_plain(rows, _INT64, 1) and fk.is_plain(out, _BOOL, 3)
+        self._available_actions_batch(plain, rows, units, out, self.constants.actions)
+        return out
+
+    def outputs(self, batch: int, with_state: bool) -> fk.Encoding:
         """Fresh arrays for an encoding of ``batch`` battles: masks, observations and the global state (zero rows
         when the kernel is not to write it: not wanted, or copied from the observations)."""
         avail = np.empty((batch, self.n_agents, self.n_actions), dtype=bool)
         obs = np.empty((batch, self.n_agents, self.obs_size), dtype=np.float32)
         rows = batch if with_state and not self.options.obs_instead_of_state else 0
-        return avail, obs, np.empty((rows, self.state_size), dtype=np.float32)
+        return fk.Encoding(avail, obs, np.empty((rows, self.state_size), dtype=np.float32))
+
+    def kernel_units(self, state: BattleState) -> tuple[fk.UnitArrays, bool]:
+        """The kernels' view of ``state``, and whether its arrays are of the one type direct kernel calls compile
+        for (:meth:`~smac_hard_gym.smac.kernels.UnitArrays.is_plain`); kept for the last state seen, as a backend
+        keeps its state arrays."""
+        seen, units, plain = self._units
+        if state is not seen:
+            units = fk.UnitArrays.of(state)
+            plain = units.is_plain()
+            self._units = (state, units, plain)
+        return units, plain
 
     def finish_state(self, obs: np.ndarray, global_state: np.ndarray) -> np.ndarray:
         """The global state of an encoding the kernel wrote: with ``obs_instead_of_state``, the observations."""
@@ -442,11 +498,16 @@ class RewardFunction:
         self.n_red = red.n_agents
         self.max_reward = np.array([red.max_reward(), blue.max_reward()], dtype=np.float64)
         self.divisor = (self.max_reward / options.reward_scale_rate) if options.reward_scale else np.ones(2)
-        # The kernels' form of the options (constants of fk.finish_encode, by name).
-        self.constants = dict(
-            reward_values=fk.pack(fk.REWARD_VALUES, np.float64, death_value=options.reward_death_value,
-                                  win=options.reward_win, defeat=options.reward_defeat,
-                                  negative_scale=options.reward_negative_scale),
-            reward_flags=fk.pack(fk.REWARD_FLAGS, sparse=options.reward_sparse,
-                                 only_positive=options.reward_only_positive),
+
+    def rules(self, fighter: np.ndarray, step_limit: int) -> fk.StepRules:
+        """The kernels' form of the reward options, with the outcome rule (``fighter``: bool (U,), the slots that
+        can win a battle) and the episode limit ``step_limit`` (env steps), for
+        :func:`~smac_hard_gym.smac.kernels.finish_encode`."""
+        opt = self.options
+        return fk.StepRules(
+            fighter=np.ascontiguousarray(fighter, dtype=bool), n_red=int(self.n_red), step_limit=int(step_limit),
+            reward=fk.RewardOptions(
+                death_value=float(opt.reward_death_value), win=float(opt.reward_win),
+                defeat=float(opt.reward_defeat), negative_scale=float(opt.reward_negative_scale),
+                sparse=bool(opt.reward_sparse), only_positive=bool(opt.reward_only_positive)),
             divisor=self.divisor)

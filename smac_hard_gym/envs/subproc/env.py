@@ -87,31 +87,14 @@ class SubprocVectorEnv(VectorEnv):
                  autoreset_mode: AutoresetMode | str | None = None, start_method: str | None = None,
                  timeout: float = 60.0, start_timeout: float | None = None, on_worker_error: str = "raise",
                  max_failures: int = 3, worker_threads: int = 1) -> None:
-        factories = list(factories)
-        if not factories or not all(callable(f) for f in factories):
-            raise ValueError(f"factories must be a non-empty list of callables, got {factories!r}")
-        if on_worker_error not in ON_WORKER_ERROR:
-            raise ValueError(f"on_worker_error must be one of {ON_WORKER_ERROR}, got {on_worker_error!r}")
         start_method = _checked_start_method(start_method)
-        if start_timeout is None:
-            start_timeout = _default_start_timeout()
-        for name, value in (("timeout", timeout), ("start_timeout", start_timeout)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
-        self._workers: list[_Worker] = []
-        self._block: SharedBlock | None = None
+        factories = self._settings(factories, autoreset_mode, timeout, start_timeout, on_worker_error, max_failures,
+                                   worker_threads)
         self.start_method = start_method
-        self.timeout = float(timeout)
-        self.start_timeout = float(start_timeout)
-        self.on_worker_error = on_worker_error
-        self.max_failures = int(max_failures)
-        self.worker_threads = int(worker_threads)
-        self._requested_mode = None if autoreset_mode is None else parse_autoreset_mode(autoreset_mode)
         self._ctx = _context(start_method)
         # Workers must share the parent's resource tracker: one of their own would unlink the shared memory when
         # its worker exits (a forked worker starts its own unless the parent's already runs).
         resource_tracker.ensure_running()
-        self.restarts = 0
         try:
             self._start_workers(factories)
         except BaseException:
@@ -121,9 +104,36 @@ class SubprocVectorEnv(VectorEnv):
     # -----------------------------------------------------------------------------------------------------------
     # Setup.
 
+    _worker_type: type[_Worker] = _Worker  # the parent's handle on one worker (a transport may extend it)
+
+    def _settings(self, factories: Sequence[Callable[[], Any]], autoreset_mode: AutoresetMode | str | None,
+                  timeout: float, start_timeout: float | None, on_worker_error: str, max_failures: int,
+                  worker_threads: int) -> list[Callable[[], Any]]:
+        """Check the arguments every transport shares and keep them; returns the factories as a list."""
+        factories = list(factories)
+        if not factories or not all(callable(f) for f in factories):
+            raise ValueError(f"factories must be a non-empty list of callables, got {factories!r}")
+        if on_worker_error not in ON_WORKER_ERROR:
+            raise ValueError(f"on_worker_error must be one of {ON_WORKER_ERROR}, got {on_worker_error!r}")
+        if start_timeout is None:
+            start_timeout = _default_start_timeout()
+        for name, value in (("timeout", timeout), ("start_timeout", start_timeout)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
+        self._workers: list[_Worker] = []
+        self._block: SharedBlock | None = None
+        self.timeout = float(timeout)
+        self.start_timeout = float(start_timeout)
+        self.on_worker_error = on_worker_error
+        self.max_failures = int(max_failures)
+        self.worker_threads = int(worker_threads)
+        self._requested_mode = None if autoreset_mode is None else parse_autoreset_mode(autoreset_mode)
+        self.restarts = 0
+        return factories
+
     def _start_workers(self, factories: list[Callable[[], Any]]) -> None:
         """Launch every worker, wait for their descriptions, lay out the batch, and attach the shared memory."""
-        self._workers = [_Worker(i, cloudpickle.dumps(f)) for i, f in enumerate(factories)]
+        self._workers = [self._worker_type(i, cloudpickle.dumps(f)) for i, f in enumerate(factories)]
         for worker in self._workers:
             self._launch(worker)
         descriptions = [self._receive_start(w) for w in self._workers]

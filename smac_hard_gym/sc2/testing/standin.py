@@ -6,9 +6,10 @@
     env = StarCraft2Env("3m", backend="sc2", backend_options={"sc2path": str(root)})
 
 The folder looks like a Linux install to pysc2_evolved's ``run_configs``: ``Versions/Base<build>/SC2_x64`` (a small
-executable Python script that runs :mod:`smac_hard_gym.sc2.testserver` with the interpreter that wrote it), ``Libs/``
-and ``Maps/SMAC_HARD_maps/<map>.SC2Map`` placeholders (an MPQ signature and a note; the test server reads only the
-name). Everything is written at run time under the folder you pass; no map file is ever part of this repository.
+executable Python script that runs :mod:`smac_hard_gym.sc2.testing.server` with the interpreter that wrote it),
+``Libs/`` and ``Maps/SMAC_HARD_maps/<map>.SC2Map`` placeholders (an MPQ signature and a note; the test server reads
+only the name). Everything is written at run time under the folder you pass; no map file is ever part of this
+repository.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pathlib import Path
 
 from smac_hard_gym.maps import SMAC_MAPS
 from smac_hard_gym.sc2.maps import MAP_FOLDER, MAP_SUFFIX
-from smac_hard_gym.sc2.testserver import BASE_BUILD, MODES
+from smac_hard_gym.sc2.testing.server import BASE_BUILD, MODES
 
 __all__ = ["make_sc2path", "standin_path", "PLACEHOLDER_NOTE"]
 
@@ -32,13 +33,13 @@ _SCRIPT = '''{shebang}
 """Stand-in for the StarCraft II binary: the smac-hard-gym protocol test server. Written by make_sc2path."""
 import sys
 
-from smac_hard_gym.sc2.testserver import main
+from smac_hard_gym.sc2.testing.server import main
 
 sys.exit(main(sys.argv[1:] + {baked!r}))
 '''
 _SHELL = '''#!/bin/sh
 # Stand-in for the StarCraft II binary: the smac-hard-gym protocol test server. Written by make_sc2path.
-exec "{python}" -m smac_hard_gym.sc2.testserver "$@" {baked}
+exec "{python}" -m smac_hard_gym.sc2.testing.server "$@" {baked}
 '''
 
 

@@ -4,13 +4,13 @@ It stands in for the game binary wherever a PySC2 client has to be exercised wit
 game's command line (``-listen HOST -port PORT -dataDir DIR ...``), serves ``ws://HOST:PORT/sc2api`` and answers
 ping, available_maps, save_map, create_game, join_game, game_info, data, observation, action, step, debug, leave_game,
 save_replay and quit. A two-player game spans two processes, as in the real game: the one that received create_game
-hosts the game (:class:`~smac_hard_gym.sc2.testgame.TestGame`) and opens a link on the ``server_ports.game_port`` of
+hosts the game (:class:`~smac_hard_gym.sc2.testing.game.TestGame`) and opens a link on the ``server_ports.game_port`` of
 the join request; the other joins through that port and forwards its requests. Players step in lockstep.
 
 Debugging a client by hand::
 
-    python -m smac_hard_gym.sc2.testserver -listen 127.0.0.1 -port 5000 -dataDir "$SC2PATH"   # host
-    python -m smac_hard_gym.sc2.testserver -listen 127.0.0.1 -port 5001 -dataDir "$SC2PATH"   # second player
+    python -m smac_hard_gym.sc2.testing.server -listen 127.0.0.1 -port 5000 -dataDir "$SC2PATH"   # host
+    python -m smac_hard_gym.sc2.testing.server -listen 127.0.0.1 -port 5001 -dataDir "$SC2PATH"   # second player
 
 Maps are found by name: ``<dataDir>/Maps/SMAC_HARD_maps/3m.SC2Map`` (any content) plays the ``3m`` map file of
 this package. What is not modelled: Computer players, replays (save_replay returns a small JSON document), queued
@@ -239,7 +239,7 @@ class StandIn:
             spec = load_map(name)
         except MapError as err:
             return fail(sc_pb.ResponseCreateGame.InvalidMapName, str(err))
-        from smac_hard_gym.sc2.testgame import Lockstep, TestGame  # loads the engine: only the host needs it
+        from smac_hard_gym.sc2.testing.game import Lockstep, TestGame  # loads the engine: only the host needs it
 
         if self._link_server is not None:  # a new game after leaving the last one
             self._link_server.close()

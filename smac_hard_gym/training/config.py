@@ -1,0 +1,127 @@
+"""A training run's settings: :class:`TrainConfig`, what ``smac-hard-gym train`` parses its options into (and writes
+to the run's ``config.json``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smac_hard_gym.training.protocol import TEST_SEED_BASE
+
+__all__ = ["TrainConfig", "POLICIES"]
+
+POLICIES = ("joint", "shared")  # train --policy
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run depends on (written to ``config.json``)."""
+
+    map_name: str = "3m"
+    opponent: str = "default"  # a pool ("default", "blackbox"), a script name, or names joined by commas
+    timesteps: int = 50_000
+    num_envs: int = 64
+    seed: int = 0
+    out: str = ""  # default: runs/<map>-<opponent>-s<seed>
+    eval_every: int = 0  # env steps between evaluations; 0: a tenth of the run
+    eval_episodes: int = 32
+    eval_envs: int = 16
+    obs_mode: str = "joint"
+    policy: str = "joint"  # "joint": the joint MLP (sb3_policy); "shared": the unit-shared MAPPO policy (sb3_shared)
+    n_steps: int = 32  # per env and rollout: num_envs * n_steps samples per update
+    batch_size: int = 512
+    n_epochs: int = 10
+    learning_rate: float = 5e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.01
+    net_arch: list[int] = field(default_factory=lambda: [128, 128])
+    torch_threads: int = 1
+    env_threads: int = 1  # numba threads for the engine batch
+    progress: bool = True
+    tensorboard: str = ""  # a directory for SB3's TensorBoard logs ("" for none; needs the tensorboard package)
+    league: bool = False  # self-play league: snapshots of the learner join the opponent's scripts (opponents.league)
+    league_every: int = 0  # env steps between snapshots; 0: a fifth of the run
+    league_weighting: str = "uniform"  # how members are drawn: "uniform" or "prioritized" (by the learner's losses)
+    ray: bool = False  # step the training battles in Ray actors (RayVectorEnv) instead of in this process
+    ray_address: str | None = None  # the Ray cluster to join (None: a local Ray, or the one already initialised)
+    ray_actors: int = 2  # actors of num_envs / ray_actors battles each
+
+    def __post_init__(self) -> None:
+        for name in ("timesteps", "num_envs", "eval_episodes", "eval_envs", "n_steps", "batch_size", "n_epochs",
+                     "torch_threads", "env_threads"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{name} must be a positive int, got {value!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0 \
+                or self.seed + self.num_envs > TEST_SEED_BASE:
+            raise ValueError(f"seed must be an int in [0, {TEST_SEED_BASE - self.num_envs}] (training battles are "
+                             f"seeded seed + b, below the test seeds from {TEST_SEED_BASE}), got {self.seed!r}")
+        if self.eval_every < 0:
+            raise ValueError(f"eval_every must be >= 0 (0: a tenth of the run), got {self.eval_every!r}")
+        if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
+            raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
+        if self.policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        if self.policy == "shared" and self.obs_mode == "dict":
+            raise ValueError("the shared policy reads the joint view: use obs_mode 'joint+state' (or 'joint')")
+        if self.league_every < 0:
+            raise ValueError(f"league_every must be >= 0 (0: a fifth of the run), got {self.league_every!r}")
+        from smac_hard_gym.opponents.league import WEIGHTINGS
+
+        if self.league_weighting not in WEIGHTINGS:
+            raise ValueError(f"league_weighting must be one of {WEIGHTINGS}, got {self.league_weighting!r}")
+        if self.ray:
+            if isinstance(self.ray_actors, bool) or not isinstance(self.ray_actors, (int, np.integer)) \
+                    or self.ray_actors < 1 or self.num_envs % self.ray_actors:
+                raise ValueError(f"ray_actors must be a positive int dividing num_envs ({self.num_envs}), got "
+                                 f"{self.ray_actors!r}")
+            if self.league:
+                raise ValueError("--league and --ray cannot be combined: the league lives in the learner's process "
+                                 "(snapshots join it and its weights change as the run goes) while Ray actors build "
+                                 "their opponents once from a pickled factory; train the league without --ray, or "
+                                 "train on Ray against fixed opponents (scripts or saved models)")
+        if self.league and self.obs_mode == "dict":
+            raise ValueError("league snapshots play from the joint view: use obs_mode 'joint' or 'joint+state'")
+        if not self.out:
+            label = "+".join(Path(part).stem if part.endswith(".zip") else part.replace(":", "_").replace("/", "_")
+                             for part in self.opponent.split(","))
+            league = "-league" if self.league else ""
+            self.out = str(Path("runs") / f"{self.map_name}-{label}{league}-s{self.seed}")
+        if self.tensorboard:
+            try:
+                import tensorboard  # noqa: F401  (SB3 writes through it)
+            except ImportError:
+                raise ValueError(f"tensorboard={self.tensorboard!r} needs the tensorboard package: "
+                                 "pip install tensorboard") from None
+
+    @property
+    def eval_interval(self) -> int:
+        return self.eval_every or max(self.timesteps // 10, self.num_envs * self.n_steps)
+
+    @property
+    def league_interval(self) -> int:
+        return self.league_every or max(self.timesteps // 5, self.num_envs * self.n_steps)
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of the envs this run trains and evaluates on."""
+        return {"map_name": self.map_name, "obs_mode": self.obs_mode}
+
+    def ppo_kwargs(self) -> dict[str, Any]:
+        """MaskablePPO's keyword arguments for this run's PPO settings (policy, env and buffer apart). The shared
+        policy's actor is MAPPO's 64x64; ``net_arch`` sizes its critic, and its layout comes from the map."""
+        net_arch: Any = [int(n) for n in self.net_arch]
+        policy_kwargs: dict[str, Any] = {"net_arch": net_arch}
+        if self.policy == "shared":
+            from smac_hard_gym.wrappers.sb3_shared import shared_policy_kwargs
+
+            policy_kwargs = {"net_arch": {"pi": [64, 64], "vf": net_arch},
+                             **shared_policy_kwargs(self.map_name, self.obs_mode)}
+        return {"n_steps": self.n_steps, "batch_size": self.batch_size, "n_epochs": self.n_epochs,
+                "learning_rate": self.learning_rate, "gamma": self.gamma, "gae_lambda": self.gae_lambda,
+                "clip_range": self.clip_range, "ent_coef": self.ent_coef, "seed": self.seed, "device": "cpu",
+                "verbose": 0, "policy_kwargs": policy_kwargs}
