@@ -92,12 +92,18 @@ def eval_callback_class() -> type:
             for done, info in zip(self.locals["dones"], self.locals["infos"], strict=True):
                 if done:  # the sampling policy's own results, between two evaluations
                     self.train_results.append(bool(info.get("is_success", False)))
+            return True
+
+        def _on_rollout_start(self) -> None:
+            # Evaluated here, after the update that follows the rollout which crossed the mark: the weights then
+            # are those trained on ``num_timesteps`` steps (during a rollout they lag one update behind, and the
+            # last evaluation would not be of the saved model). The end of training evaluates after ``learn``.
             if self.num_timesteps >= self.next_eval:
-                self.next_eval += self.interval
+                while self.next_eval <= self.num_timesteps:
+                    self.next_eval += self.interval
                 row = self.evaluate_now(self.num_timesteps, self.take_train_results())
                 if self.bar is not None:
                     self.bar.set_postfix(win_rate=f"{row['win_rate']:.2f}", env=f"{row['env_fraction']:.0%}")
-            return True
 
         def _on_training_end(self) -> None:
             self.close_bar()
