@@ -60,14 +60,14 @@ def test_plan_covers_maps_opponents_and_seeds_in_order(tmp_path):
     assert config.blackbox and not config.values
 
 
-def test_mixing_experiment_plan(tmp_path):
+def test_mixing_plan_runs_nearest_weakest_and_both_on_10m_vs_11m(tmp_path):
     config = SweepConfig(experiment="mixing", seeds=1, out=str(tmp_path))
     assert [r.label for r in plan(config)] == ["10m_vs_11m-nearest-s0", "10m_vs_11m-weakest-s0",
                                                "10m_vs_11m-nearest+weakest-s0"]
     assert config.values and not config.blackbox
 
 
-def test_run_state(tmp_path):
+def test_run_state_is_todo_partial_or_done_from_the_run_folder(tmp_path):
     assert run_state(tmp_path / "none") == "todo"
     (tmp_path / "half").mkdir()
     assert run_state(tmp_path / "half") == "partial"
@@ -121,7 +121,7 @@ def test_a_failed_run_is_reported_and_redone_next_time(tmp_path, monkeypatch):
 # Aggregation and report.
 
 
-def test_aggregation_by_hand(tmp_path):
+def test_aggregation_gives_hand_computed_mean_std_min_max_per_map_and_script(tmp_path):
     # 3m vs smac: final 1.0, 0.5, 0.75 -> mean 0.75, std sqrt((0.25^2 + 0.25^2 + 0) / 3) = 0.2041, min 0.5, max 1.0
     for seed, (final, bb) in enumerate([(1.0, (0.0, 0.5)), (0.5, (0.25, 0.25)), (0.75, (0.5, 1.0))]):
         _fake_run(tmp_path, "3m", "smac", seed, final, [(0, 0.0), (100, final / 2), (200, final)],
@@ -220,7 +220,7 @@ def test_report_puts_ours_next_to_the_paper(tmp_path):
     assert "after 1,000 env steps" in text and "section 6.2" in text
 
 
-def test_spearman_by_hand():
+def test_spearman_matches_hand_computed_ranks_with_ties():
     # one swapped pair of four: 1 - 6 * (1 + 1) / (4 * (16 - 1)) = 0.8
     assert baselines.spearman([1, 2, 3, 4], [10, 30, 20, 40]) == pytest.approx(0.8)
     # a tie shares ranks 1 and 2 (1.5 each): ranks (1.5, 1.5, 3) against (1, 2, 3); Pearson's r = 1.5 / sqrt(1.5 * 2)
@@ -256,7 +256,7 @@ def test_findings_sort_maps_by_the_papers_claims(tmp_path):
     assert "black-box lower than `smac` on 3 of 4, level on 1" in text
 
 
-def test_training_time_per_map(tmp_path):
+def test_training_time_reports_median_range_and_total_per_map(tmp_path):
     for seed, seconds in enumerate([60.0, 180.0, 120.0]):  # 1, 3 and 2 minutes: median 2, total 6
         _fake_run(tmp_path, "8m", "smac", seed, 1.0, [(0, 0.0), (100, 1.0)], train_wall_s=seconds)
     _fake_run(tmp_path, "3m", "default", 0, 1.0, [(0, 0.0), (100, 1.0)], train_wall_s=1800.0)

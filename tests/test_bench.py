@@ -74,7 +74,7 @@ def test_must_reach_ratios_and_verdicts():
     assert "native best batch >= 5x SMAX best batch, 27m_vs_30m" not in targets  # no figures, no verdict
 
 
-def test_bench_vector_cli_smoke(tmp_path, capsys):
+def test_bench_vector_cli_writes_every_section_it_is_asked_for(tmp_path, capsys):
     out = tmp_path / "run" / "bench.json"
     code = main(["bench", "vector", "--maps", "3m", "--num-envs", "2", "--sections",
                  "native,subproc,starcraft2,opponents,profile", "--workers", "1", "--envs-per-worker", "2",
@@ -132,7 +132,7 @@ def test_peer_without_jaxmarl_says_how_to_set_it_up(tmp_path, capsys):
     assert "jaxmarl" in err and "pip install" in err
 
 
-def test_bench_engine_cli_still_works(tmp_path):
+def test_bench_engine_cli_writes_an_engine_result(tmp_path):
     out = tmp_path / "engine.json"
     assert main(["bench", "engine", "--map", "3m", "--batch", "2", "--steps", "2", "--repeats", "1",
                  "--json", str(out)]) == 0

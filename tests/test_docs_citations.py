@@ -102,7 +102,7 @@ def test_the_check_catches_a_missing_file_or_section(text, bad):
     assert len(broken_citations(text)) == bad, broken_citations(text)
 
 
-def test_section_lists():
+def test_section_ranges_expand_to_section_numbers():
     assert _numbers("3-§6") == [3, 4, 5, 6]
     assert _numbers("7, §9") == [7, 9]
     assert _numbers("3/§4") == [3, 4]

@@ -125,7 +125,7 @@ def _features(engine, side=RED, **options):
     return feats, avail
 
 
-def test_marine_observation_exact(marines):
+def test_marine_observation_matches_the_hand_computed_vector(marines):
     feats, avail = _features(marines)
     obs = feats.observations(marines.state, avail, np.full((1, 3), -1), np.zeros(1, dtype=np.int64))[0]
     expected_agent0 = [
@@ -151,7 +151,7 @@ def test_marine_observation_exact(marines):
     np.testing.assert_allclose(obs[1], expected_agent1, rtol=1e-6, atol=1e-7)
 
 
-def test_marine_state_exact(marines):
+def test_marine_state_matches_the_hand_computed_vector(marines):
     feats, _ = _features(marines, state_timestep_number=True)
     last = np.array([[1, 6, 2]])
     state = feats.global_state(marines.state, last, np.array([6]))[0]
@@ -195,7 +195,7 @@ def test_last_action_in_ally_rows(marines):
     np.testing.assert_array_equal(hidden, 0.0)
 
 
-def test_health_options(marines):
+def test_health_options_drop_or_keep_the_health_columns(marines):
     feats, avail = _features(marines, obs_all_health=False, obs_own_health=False)
     obs = feats.observations(marines.state, avail, np.full((1, 3), -1), np.zeros(1, dtype=np.int64))[0]
     assert feats.obs_size == 4 + 3 * 4 + 2 * 4 + 0
@@ -305,7 +305,7 @@ def test_medivac_state_energy_and_heal_quirk():
     assert state[medivac * nf_s + 1] == pytest.approx(100 / 200)  # energy / 200 in the cooldown column
 
 
-def test_visibility_matrix(marines):
+def test_visibility_matrix_follows_sight_and_is_symmetric_among_allies(marines):
     feats, _ = _features(marines)
     vis = feats.visibility(marines.state)[0]
     # Columns: allies 0-2, enemies 0-2. Agent 0 sees ally 1 and enemies 0, 1; agent 1 sees everyone.
@@ -372,7 +372,7 @@ def test_mirrored_battle_gives_mirrored_observations(name, positions, healths, s
     assert blue_obs.any(axis=1).all()  # every blue agent sees something: the comparison is not vacuous
 
 
-def test_options_are_validated():
+def test_bad_smac_options_are_rejected_naming_the_option():
     with pytest.raises(TypeError, match="option obs_last_action must be True or False, got 'yes'"):
         SmacOptions(obs_last_action="yes")
     with pytest.raises(TypeError, match="option reward_win must be a finite number"):

@@ -77,7 +77,7 @@ def test_spawns_and_orders_follow_the_map_scripts():
     ("2m_vs_1z", {6: (10, 21), 9: (8, 23), 15: (6, 25), 23: (8, 23), 25: (10, 21)}),
     ("corridor", {5: (2, 11), 12: (12, 13), 15: (14, 25), 20: (12, 29), 29: (20, 29)}),
 ])
-def test_pathable_rows(name, rows):
+def test_pathable_extent_of_rows_matches_the_documented_areas(name, rows):
     spec = load_map(name)
     for y, (x0, x1) in rows.items():
         xs = np.flatnonzero(spec.pathable[:, y])

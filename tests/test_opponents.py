@@ -194,7 +194,7 @@ def test_map_scripts_only_play_their_maps():
         make_opponent("MMM", "line_front")
 
 
-def test_make_opponent_forms():
+def test_make_opponent_accepts_a_name_a_pool_or_weighted_names():
     assert make_opponent("3m").name == "base"
     assert make_opponent("3m", "weakest").name == "weakest"
     mix = make_opponent("8m", "default")

@@ -188,7 +188,7 @@ def test_invalid_actions_noop_and_raise():
     assert strict.core.episode_step[0] == 0  # rejected steps changed nothing
 
 
-def test_bad_input_errors():
+def test_bad_arguments_and_step_before_reset_raise_clear_errors():
     with pytest.raises(ValueError, match="teams must be one of \\('red', 'both'\\), got 'blue'"):
         parallel_env("3m", teams="blue")
     with pytest.raises(ValueError, match="invalid_action must be one of"):
@@ -218,7 +218,7 @@ def test_bad_input_errors():
     env.step({"red_0": np.int64(1), "red_1": 1.0, "red_2": np.array(1)})  # numpy and integral values are fine
 
 
-def test_options_and_render():
+def test_smac_options_size_the_spaces_and_rgb_render_gives_a_frame():
     env = parallel_env("3m", obs_last_action=True, state_last_action=False, render_mode="rgb_array")
     ref = StarCraft2Env("3m", obs_last_action=True, state_last_action=False)
     assert env.observation_space("red_0")["observation"].shape == (ref.get_obs_size(),)

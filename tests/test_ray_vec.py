@@ -234,7 +234,7 @@ def test_league_and_ray_together_are_a_clear_error():
         TrainConfig(num_envs=6, ray=True, ray_actors=4)
 
 
-def test_bench_ray_section(tmp_path):
+def test_bench_ray_section_writes_ray_and_subproc_rows_and_payload_sizes(tmp_path):
     import json
 
     from smac_hard_gym.cli import main

@@ -325,7 +325,7 @@ def test_episode_errors_name_the_problem(tmp_path):
         recorder.capture(BattleEngine("8m").state)
 
 
-def test_video_writers(tmp_path, monkeypatch):
+def test_video_writer_makes_gifs_and_names_bad_suffixes_and_missing_ffmpeg(tmp_path, monkeypatch):
     from PIL import Image
 
     frames = [np.full((10, 12, 3), v, dtype=np.uint8) for v in (0, 120, 250)]

@@ -358,7 +358,7 @@ def _real_game() -> str | None:
 
 
 @pytest.mark.skipif(_real_game() is None, reason="needs StarCraft II and SMAC-HARD's 3m map in SC2PATH")
-def test_real_game_smoke():
+def test_real_game_resets_and_steps_3m_with_finite_observations():
     env = StarCraft2Env("3m", backend="sc2", seed=0)
     try:
         obs, state = env.reset()

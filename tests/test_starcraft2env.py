@@ -49,7 +49,7 @@ def pymarl_episode(env, rng, cur_stats=None):
     return episode_return, info
 
 
-def test_pymarl_style_loop():
+def test_pymarl_style_loop_gives_smac_env_info_and_bounded_returns():
     env = StarCraft2Env(map_name="3m", seed=1)
     info = env.get_env_info()
     assert set(info) == ENV_INFO_KEYS
@@ -190,7 +190,7 @@ def test_same_seed_same_episode():
     assert returns(11) == returns(11)
 
 
-def test_self_play_api():
+def test_self_play_mode_gives_each_team_its_obs_state_and_rewards():
     env = StarCraft2Env(map_name="2m_vs_1z", mode="self-play")
     (obs_red, obs_blue), (state_red, state_blue) = env.reset()
     infos = env.get_env_info()
@@ -211,7 +211,7 @@ def test_self_play_api():
         env.get_obs(2)
 
 
-def test_smac_hard_spellings():
+def test_smac_hard_mode_spellings_map_to_ours_and_conflicts_raise():
     env = StarCraft2Env(map_name="3m", mode="multi")
     assert env.mode == "self-play"
     assert StarCraft2Env(map_name="3m", mode="single").mode == "script"
@@ -240,7 +240,7 @@ def test_strategy_prob_weights_the_default_pool(monkeypatch):
     assert seen == {"opponent": "default", "probs": [0.25, 0.75]}
 
 
-def test_render_rgb_array():
+def test_render_rgb_array_gives_a_frame_and_rejects_other_modes():
     env = StarCraft2Env(map_name="3m")
     env.reset()
     frame = env.render("rgb_array")

@@ -117,7 +117,7 @@ def test_same_step_autoreset_pinned():
     env.close()
 
 
-def test_disabled_autoreset_pinned():
+def test_disabled_autoreset_needs_a_reset_mask_after_an_episode_ends():
     env, steps_of = _pinned_env(AutoresetMode.DISABLED)
     _desync(env, steps_of)
     obs, reward, terminated, truncated, infos = env.step(STOP)
