@@ -7,6 +7,8 @@ import math
 import numpy as np
 
 from smac_hard_gym.engine import BattleEngine
+from smac_hard_gym.engine.kernels import Rows, battle_rows
+from smac_hard_gym.engine.state import Scratch, allocate_state
 from smac_hard_gym.maps import parse_map
 
 
@@ -29,6 +31,17 @@ def open_map(red: list[str], blue: list[str], name: str = "test_open"):
         "terrain": {"pathable": ["." * 32] * 32, "cliff": ["1" * 32] * 32},
     }
     return parse_map(doc, name)
+
+
+def battle_rows_of(x: np.ndarray, y: np.ndarray, alive: np.ndarray, order: np.ndarray | None = None) -> Rows:
+    """The :class:`Rows` of a one-battle state with units at (``x``, ``y``), for calling a phase directly (the
+    views write through to that state's arrays): red, ``alive`` as given, idle unless ``order`` says, no targets."""
+    n = len(x)
+    st, scratch = allocate_state(1, n), Scratch.empty(1, n)
+    st.x[0], st.y[0], st.alive[0] = x, y, alive
+    if order is not None:
+        st.order[0] = order
+    return getattr(battle_rows, "py_func", battle_rows)(st, scratch, 0)
 
 
 def engine_with(red: list[str], blue: list[str], positions: dict[int, tuple[float, float]], batch: int = 1,

@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from engine_helpers import engine_with
+from engine_helpers import battle_rows_of, engine_with
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, BattleEngine, Commands
 from smac_hard_gym.engine.kernels import _separation
@@ -90,10 +90,9 @@ def test_separation_pushes_do_not_depend_on_slot_order():
     walk = np.ones((2, 32, 32), dtype=np.uint8)
     results = []
     for perm in ([0, 1, 2], [2, 0, 1], [1, 2, 0]):
-        x, y = x0[perm].copy(), y0[perm].copy()
-        _separation(3, np.zeros(3, np.int8), np.ones(3, dtype=bool), x, y, np.zeros(3), np.zeros(3),
-                    np.full(3, ORDER_IDLE, np.int8), np.zeros(3), np.zeros(3), np.full(3, -1, np.int32),
-                    np.zeros(3, np.int8), slot_stats, walk, np.arange(3, dtype=np.int32), np.zeros(3), 0.375)
+        rows = battle_rows_of(x0[perm], y0[perm], np.ones(3, dtype=bool), np.full(3, ORDER_IDLE, np.int8))
+        _separation(3, rows, slot_stats, walk, 0.375)
+        x, y = rows.x, rows.y
         back = np.argsort(perm)
         results.append((x[back], y[back]))
     for x, y in results[1:]:

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from engine_helpers import engine_with
+from engine_helpers import battle_rows_of, engine_with
 from numba import njit, prange
 
 import smac_hard_gym.engine as engine_module
@@ -97,17 +97,11 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     slot_stats = np.ascontiguousarray(STATS[[unit_index(name) for name in names]])
     walk = np.ones((2, 128, 128), dtype=np.uint8)
     order = np.where(hold, ORDER_HOLD, ORDER_IDLE).astype(np.int8)
-    by_x = np.arange(len(names), dtype=np.int32)
-    key = np.zeros(len(names))
     expected_x, expected_y, expected_worst = _reference_pass(names, alive, hold, x, y)
-    got_x, got_y = x.copy(), y.copy()
-    scratch_x, scratch_y = np.zeros(len(names)), np.zeros(len(names))
-    n = len(names)
-    worst = _separation(n, np.zeros(n, np.int8), alive, got_x, got_y, scratch_x, scratch_y, order, np.zeros(n),
-                        np.zeros(n), np.full(n, -1, np.int32), np.zeros(n, np.int8), slot_stats, walk, by_x, key,
-                        slot_stats[:, S["radius"]].max())
-    np.testing.assert_allclose(got_x, expected_x, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(got_y, expected_y, rtol=0, atol=1e-12)
+    rows = battle_rows_of(x, y, alive, order)
+    worst = _separation(len(names), rows, slot_stats, walk, slot_stats[:, S["radius"]].max())
+    np.testing.assert_allclose(rows.x, expected_x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rows.y, expected_y, rtol=0, atol=1e-12)
     assert worst == pytest.approx(expected_worst, abs=1e-12)
     assert expected_worst > 0.01  # the scene did contain pushes
 
@@ -120,13 +114,11 @@ def test_sweep_passes_clear_a_dense_crowd():
     x, y = rng.uniform(30, 35, n), rng.uniform(30, 35, n)
     slot_stats = np.ascontiguousarray(STATS[[unit_index("marine")] * n])
     walk = np.ones((2, 64, 64), dtype=np.uint8)
-    alive, order = np.ones(n, dtype=bool), np.zeros(n, dtype=np.int8)
-    by_x, key, scratch_x, scratch_y = np.arange(n, dtype=np.int32), np.zeros(n), np.zeros(n), np.zeros(n)
+    rows = battle_rows_of(x, y, np.ones(n, dtype=bool))
     for _ in range(400):
-        if _separation(n, np.zeros(n, np.int8), alive, x, y, scratch_x, scratch_y, order, np.zeros(n), np.zeros(n),
-                       np.full(n, -1, np.int32), np.zeros(n, np.int8), slot_stats, walk, by_x, key,
-                       0.375) < 1e-6:
+        if _separation(n, rows, slot_stats, walk, 0.375) < 1e-6:
             break
+    x, y = rows.x, rows.y
     dist = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) + np.eye(n) * 10
     assert dist.min() > 0.75 - 1e-5
 

@@ -36,6 +36,7 @@ from smac_hard_gym.engine.state import (
     RED,
     BattleState,
     Commands,
+    Scratch,
     allocate_state,
 )
 from smac_hard_gym.engine.terrain import Terrain, build_terrain
@@ -101,15 +102,7 @@ class BattleEngine:
         self.state: BattleState = allocate_state(self.batch_size, self.n_units)
         # The kernels read each slot's unit table row directly (a slot's type is fixed by the layout).
         self._slot_stats = np.ascontiguousarray(STATS[self.layout.utype])
-        # Separation's sweep: each battle's slots in x order (kept between steps, so nearly sorted) and sort keys.
-        self._by_x = np.tile(np.arange(self.n_units, dtype=np.int32), (self.batch_size, 1))
-        self._sort_key = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
-        # Targeting's snapshot of every unit's target at the start of a loop ("who is attacking me").
-        self._engaged = np.zeros((self.batch_size, self.n_units), dtype=np.int32)
-        # Movement's snapshot of positions at the start of the phase (units move simultaneously); separation then
-        # reuses the two arrays to sum its pushes.
-        self._x0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
-        self._y0 = np.zeros((self.batch_size, self.n_units), dtype=np.float64)
+        self._scratch = Scratch.empty(self.batch_size, self.n_units)  # the kernels' working arrays
         self._next_battle = np.zeros(1, dtype=np.int64)  # the parallel kernel's shared work counter
         self.commands = Commands.empty(self.batch_size, self.n_units)
         self._all_active = np.ones(self.batch_size, dtype=np.bool_)
@@ -168,10 +161,8 @@ class BattleEngine:
         """
         cmd = self.commands if commands is None else commands
         act = self._all_active if active is None else np.ascontiguousarray(active, dtype=np.bool_)
-        t = self.terrain
-        args = (self.state, cmd.kind, cmd.target, cmd.x, cmd.y, self._slot_stats, t.walk, t.next_hop, t.los,
-                t.open_field, self.step_mul if n_loops is None else int(n_loops), act, self.cooldown_jitter,
-                self._by_x, self._sort_key, self._engaged, self._x0, self._y0, self._units)
+        args = (self.state, cmd, self._slot_stats, self.terrain, self.step_mul if n_loops is None else int(n_loops),
+                act, self.cooldown_jitter, self._scratch, self._units)
         # One thread (a training run's engine: ``train --env-threads 1``) steps on the calling thread whatever the
         # batch: the parallel driver would run the same battles in the same order, and it is not compiled at all.
         threads = numba.get_num_threads() if self.batch_size >= PARALLEL_MIN_BATCH else 1
@@ -186,10 +177,10 @@ class BattleEngine:
     def _take_direct_serial(self, cmd: Commands, args: tuple) -> None:
         """Call the compiled serial kernel directly from now on when stepping with the command buffer ``cmd``.
 
-        numba's dispatcher types every argument on every call, the 20 state arrays included: about 6 us a step, as
-        long as 3m's eight game loops at B=1. Every argument is one of this engine's own arrays except the command
-        arrays and ``active`` (a contiguous bool vector, checked per call); once ``cmd``'s arrays have been typed
-        here, its steps skip the dispatcher. The overload is the one the dispatcher itself chose for these types.
+        numba's dispatcher types every argument on every call, each array of the state's 25 included: about 6 us a
+        step, as long as 3m's eight game loops at B=1. Every argument is one of this engine's own except the commands
+        and ``active`` (a contiguous bool vector, checked per call); once ``cmd``'s arrays have been typed here, its
+        steps skip the dispatcher. The overload is the one the dispatcher itself chose for these types.
         """
         if self._direct_commands is not None:
             return

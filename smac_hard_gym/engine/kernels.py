@@ -2,8 +2,10 @@
 parallel over the batch.
 
 ``step_battles`` steps a range of battles on the calling thread; ``step_batch`` spreads the batch over numba's
-threads in chunks, each a call of ``step_battles``. For each battle (``_step_battle``) it takes 1-D row views of the
-state once per env step and hands them to small mechanics, one function per mechanic, inlined into the loop body:
+threads in chunks, each a call of ``step_battles``; nothing else runs the battle loop. Both take the engine's bundles
+whole: the state (``BattleState``), the commands (``Commands``), the map's ``Terrain`` and the working arrays
+(``Scratch``). For each battle (``_step_battle``) the driver takes its 1-D row views once per env step, as one
+:class:`Rows` bundle, and hands them to small mechanics, one function per mechanic, inlined into the loop body:
 
 1. ``_timers``: weapon cooldowns, shield regeneration after the no-damage delay, zerg regeneration, energy;
 2. ``_targeting``: ordered targets, SC2's automatic acquisition for units that acquire (idle, hold, attack-move)
@@ -26,8 +28,10 @@ Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechan
   phases' helpers are called: LLVM inlines the small ones), and both drivers are
   compiled without numba's reference counting (``_nrt=False``): they allocate nothing, and every row view and
   inlined helper argument otherwise cost an atomic increment and decrement on the state arrays' shared counters
-  (half the serial time on 3m, and cache-line ping-pong between the threads). Called as a function, a battle also
-  received the state (a tuple of 20 arrays) by value on every call; ``step_batch`` pays that once per chunk.
+  (half the serial time on 3m, and cache-line ping-pong between the threads). So the :class:`Rows` bundle the
+  inlined phases share costs nothing either; the called helpers take the arrays they use one by one, since a bundle
+  passed to a call travels by value. Called as a function, a battle also received the state (a tuple of 25 arrays)
+  by value on every call; ``step_batch`` pays that once per chunk.
 - ``step_kernels_for`` gives the drivers' overloads for one map's unit count, for big batches.
 - Compile time: the phases are inlined into the battle, the helpers they call are not (see ``helper``), and the
   unit count is a type (``units_marker``), not a closure, so one cached dispatcher serves every count.
@@ -40,7 +44,7 @@ Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechan
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -103,6 +107,58 @@ inline = njit(cache=True, inline="always", error_model="numpy")
 helper = njit(cache=True, error_model="numpy", _nrt=False)
 
 
+class Rows(NamedTuple):
+    """One battle's rows: 1-D views (U,) into the batch's arrays, taken once per env step by ``_step_battle`` and
+    handed to the phases. Each field is row b of the :class:`~smac_hard_gym.engine.state.BattleState` or
+    :class:`~smac_hard_gym.engine.state.Scratch` field of the same name (shapes, dtypes and units are documented
+    there), except ``loop`` and ``rng``: one-element views ``[b:b + 1]`` of those (B,) fields, so that writes land
+    (see ``_step_battle``).
+
+    The phases are inlined into the drivers, which run without reference counting, so the bundle costs nothing: its
+    fields are read like local variables. The helpers the phases call still take the arrays they use one by one.
+    """
+
+    side: np.ndarray
+    alive: np.ndarray
+    alive_at_loop: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    health: np.ndarray
+    shield: np.ndarray
+    energy: np.ndarray
+    cooldown: np.ndarray
+    shield_wait: np.ndarray
+    order: np.ndarray
+    order_target: np.ndarray
+    order_x: np.ndarray
+    order_y: np.ndarray
+    target: np.ndarray
+    attacker: np.ndarray
+    fired_at: np.ndarray
+    burst: np.ndarray
+    stance: np.ndarray
+    pending_target: np.ndarray
+    pending_eta: np.ndarray
+    pending_hits: np.ndarray
+    loop: np.ndarray
+    rng: np.ndarray
+    by_x: np.ndarray
+    key: np.ndarray
+    engaged: np.ndarray
+    x0: np.ndarray
+    y0: np.ndarray
+
+
+@inline
+def battle_rows(st, scratch, b):
+    """Battle b's :class:`Rows` of the state ``st`` and the scratch arrays ``scratch``."""
+    return Rows(st.side[b], st.alive[b], st.alive_at_loop[b], st.x[b], st.y[b], st.health[b], st.shield[b],
+                st.energy[b], st.cooldown[b], st.shield_wait[b], st.order[b], st.order_target[b], st.order_x[b],
+                st.order_y[b], st.target[b], st.attacker[b], st.fired_at[b], st.burst[b], st.stance[b],
+                st.pending_target[b], st.pending_eta[b], st.pending_hits[b], st.loop[b:b + 1], st.rng[b:b + 1],
+                scratch.by_x[b], scratch.key[b], scratch.engaged[b], scratch.x0[b], scratch.y0[b])
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Small helpers.
 
@@ -135,8 +191,11 @@ def _within(xi, yi, xj, yj, limit):
 
 
 @inline
-def _apply_commands(n, side, alive, order, order_target, order_x, order_y, target, fired_at, burst,
-                    kind, cmd_target, cmd_x, cmd_y, slot_stats):
+def _apply_commands(n, r, cmd, b, slot_stats):
+    """Battle b's commands (``cmd``, a :class:`~smac_hard_gym.engine.state.Commands`) become its units' orders."""
+    side, alive, order, order_target, order_x, order_y = r.side, r.alive, r.order, r.order_target, r.order_x, r.order_y
+    target, fired_at, burst = r.target, r.fired_at, r.burst
+    kind, cmd_target, cmd_x, cmd_y = cmd.kind[b], cmd.target[b], cmd.x[b], cmd.y[b]
     for i in range(n):
         fired_at[i] = NO_UNIT
         burst[i] = False
@@ -174,8 +233,10 @@ def _apply_commands(n, side, alive, order, order_target, order_x, order_y, targe
 
 
 @inline
-def _timers(n, alive, alive0, target, engaged, health, shield, energy, cooldown, shield_wait, slot_stats):
+def _timers(n, r, slot_stats):
     """Start of a loop: the snapshots the loop's phases read (who is alive, who engages whom), then the timers."""
+    alive, alive0, target, engaged = r.alive, r.alive_at_loop, r.target, r.engaged
+    health, shield, energy, cooldown, shield_wait = r.health, r.shield, r.energy, r.cooldown, r.shield_wait
     for i in range(n):
         alive0[i] = alive[i]
         engaged[i] = target[i]
@@ -337,7 +398,7 @@ def _acquire(n, i, o, passive, side, alive, x, y, target, engaged, attacker, slo
 
 
 @inline
-def _targeting(n, side, alive, x, y, health, order, order_target, target, engaged, attacker, slot_stats):
+def _targeting(n, r, slot_stats):
     """Who each unit engages this loop (SC2's rules; docs/engine_targeting.md lists each rule with its source).
 
     - Ordered attacks and heals keep their target until it dies (then the order completes): no switching.
@@ -351,6 +412,8 @@ def _targeting(n, side, alive, x, y, health, order, order_target, target, engage
 
     "Attacking it" is read from ``engaged``, the targets when the loop began (``_timers`` takes the snapshot).
     """
+    side, alive, x, y, health = r.side, r.alive, r.x, r.y, r.health
+    order, order_target, target, engaged, attacker = r.order, r.order_target, r.target, r.engaged, r.attacker
     for i in range(n):
         if not alive[i]:
             continue
@@ -424,8 +487,7 @@ def _slide(px, py, nx, ny, mover, walk):
 
 
 @inline
-def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, stance, slot_stats, walk, next_hop, los,
-              open_field):
+def _movement(n, r, slot_stats, terrain):
     """Every unit steps toward its target (unless in range) or its order point; ``stance`` records who walked and
     who stood to fire, for separation.
 
@@ -434,6 +496,9 @@ def _movement(n, alive, x, y, x0, y0, order, order_x, order_y, target, stance, s
     already closed, so red always advanced further than blue in a mirrored fight. (Group arrival, the other way a
     move completes, is decided where units bump: in ``_separation``.)
     """
+    alive, x, y, x0, y0, stance = r.alive, r.x, r.y, r.x0, r.y0, r.stance
+    order, order_x, order_y, target = r.order, r.order_x, r.order_y, r.target
+    walk, next_hop, los, open_field = terrain.walk, terrain.next_hop, terrain.los, terrain.open_field
     for i in range(n):
         x0[i] = x[i]
         y0[i] = y[i]
@@ -561,8 +626,7 @@ def _bump(mover, other, order, order_x, order_y, target, x, y):
 
 
 @inline
-def _separation(n, side, alive, x, y, push_x, push_y, order, order_x, order_y, target, stance, slot_stats, walk, by_x,
-                key, max_radius):
+def _separation(n, r, slot_stats, walk, max_radius):
     """One pass of pushes over every pair that overlaps when the pass begins; returns the deepest overlap pushed
     (0: nothing moved).
 
@@ -580,7 +644,12 @@ def _separation(n, side, alive, x, y, push_x, push_y, order, order_x, order_y, t
     already idle within 3 of that point stops there, idle (SC2: a crowd sent to one point stops as a clump around it
     instead of pushing toward it for ever). Units that arrive in a pass are marked ``_ARRIVING`` and become idle
     when it ends, so no one arrives by bumping into a unit that only arrived in the same pass.
+
+    ``walk`` is the terrain's walkable grids; ``max_radius`` the largest radius among the battle's units.
     """
+    side, alive, x, y, order, order_x, order_y = r.side, r.alive, r.x, r.y, r.order, r.order_x, r.order_y
+    target, stance, by_x, key = r.target, r.stance, r.by_x, r.key
+    push_x, push_y = r.x0, r.y0  # movement is done with its snapshot: the arrays sum the pushes now
     _sort_by_x(n, by_x, key, x)
     worst = 0.0
     pushed = False
@@ -783,8 +852,14 @@ def _fire(i, j, x, y, health, shield, shield_wait, attacker, pending_target, pen
 
 
 @inline
-def _attacks(n, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
-             fired_at, burst, pending_target, pending_eta, pending_hits, slot_stats, rng, jitter_lo, jitter_hi):
+def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
+    """Every unit alive when the loop began and in reach of its target acts: delayed hits land, weapons off
+    cooldown fire (each shot's cooldown gets a uniform random delay in [``jitter_lo``, ``jitter_hi``) loops), banelings
+    burst, then medivacs heal."""
+    side, alive0, x, y, health, shield = r.side, r.alive_at_loop, r.x, r.y, r.health, r.shield
+    energy, cooldown, shield_wait, target, attacker = r.energy, r.cooldown, r.shield_wait, r.target, r.attacker
+    fired_at, burst, rng = r.fired_at, r.burst, r.rng
+    pending_target, pending_eta, pending_hits = r.pending_target, r.pending_eta, r.pending_hits
     _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
                   slot_stats)
     heals = False
@@ -823,7 +898,8 @@ def _attacks(n, side, alive0, x, y, health, shield, energy, cooldown, shield_wai
 
 
 @inline
-def _deaths(n, alive, health, shield, order, target):
+def _deaths(n, r):
+    alive, health, shield, order, target = r.alive, r.health, r.shield, r.order, r.target
     for i in range(n):
         if alive[i] and health[i] <= 0.0:
             alive[i] = False
@@ -837,77 +913,63 @@ def _deaths(n, alive, health, shield, order, target):
 
 
 @inline
-def _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops,
-                 jitter, by_x, key, engaged, x0, y0):
+def _step_battle(n, b, st, cmd, slot_stats, terrain, n_loops, jitter, scratch):
     """Apply battle b's commands, then run ``n_loops`` game loops on it (``n`` units).
 
-    ``slot_stats`` (U, columns) is the unit table row of each slot. ``jitter`` = (low, high): each attack's cooldown
-    gets a uniform random delay in [low, high) loops; (0, 0) for none. ``by_x`` (B, U) int32 holds each battle's
-    slots ordered by x (any permutation will do; kept between steps because it is then nearly sorted) and ``key``
-    (B, U) float64 is scratch for the sort; ``engaged`` (B, U) int32 and ``x0``, ``y0`` (B, U) float64 are scratch for
-    targeting's and movement's snapshots (simultaneous decisions, independent of slot order) and separation's push
-    accumulators.
+    ``st``: the :class:`~smac_hard_gym.engine.state.BattleState`; ``cmd``: the
+    :class:`~smac_hard_gym.engine.state.Commands`; ``slot_stats`` (U, columns) float64: the unit table row of each
+    slot; ``terrain``: the map's :class:`~smac_hard_gym.engine.terrain.Terrain`; ``jitter`` (2,) float64 = (low, high):
+    each attack's cooldown gets a uniform random delay in [low, high) game loops, (0, 0) for none; ``scratch``: the
+    :class:`~smac_hard_gym.engine.state.Scratch` working arrays.
     """
-    rng = st.rng[b:b + 1]
+    r = battle_rows(st, scratch, b)
     jitter_lo, jitter_hi = jitter[0], jitter[1]
-    side, alive, alive0 = st.side[b], st.alive[b], st.alive_at_loop[b]
-    x, y, health, shield, energy = st.x[b], st.y[b], st.health[b], st.shield[b], st.energy[b]
-    cooldown, shield_wait = st.cooldown[b], st.shield_wait[b]
-    order, order_target, order_x, order_y = st.order[b], st.order_target[b], st.order_x[b], st.order_y[b]
-    target, attacker, fired_at, burst = st.target[b], st.attacker[b], st.fired_at[b], st.burst[b]
-    stance = st.stance[b]
-    pending_target, pending_eta, pending_hits = st.pending_target[b], st.pending_eta[b], st.pending_hits[b]
-    order_by_x, sort_key, engaged_at_loop, x_at_loop, y_at_loop = by_x[b], key[b], engaged[b], x0[b], y0[b]
+    walk = terrain.walk
     max_radius = 0.0
     for i in range(n):
         max_radius = max(max_radius, slot_stats[i, _RADIUS])
     worst = 0.0
-    _apply_commands(n, side, alive, order, order_target, order_x, order_y, target, fired_at, burst,
-                    kind[b], cmd_target[b], cmd_x[b], cmd_y[b], slot_stats)
+    _apply_commands(n, r, cmd, b, slot_stats)
     for _ in range(n_loops):
-        _timers(n, alive, alive0, target, engaged_at_loop, health, shield, energy, cooldown, shield_wait, slot_stats)
-        _targeting(n, side, alive, x, y, health, order, order_target, target, engaged_at_loop, attacker, slot_stats)
-        _movement(n, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, stance, slot_stats, walk,
-                  next_hop, los, open_field)
-        # Separation reuses movement's snapshot arrays as its push accumulators (movement is done with them).
-        worst = _separation(n, side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, stance,
-                            slot_stats, walk, order_by_x, sort_key, max_radius)
-        _attacks(n, side, alive0, x, y, health, shield, energy, cooldown, shield_wait, target, attacker,
-                 fired_at, burst, pending_target, pending_eta, pending_hits, slot_stats, rng, jitter_lo, jitter_hi)
-        _deaths(n, alive, health, shield, order, target)
+        _timers(n, r, slot_stats)
+        _targeting(n, r, slot_stats)
+        _movement(n, r, slot_stats, terrain)
+        worst = _separation(n, r, slot_stats, walk, max_radius)
+        _attacks(n, r, slot_stats, jitter_lo, jitter_hi)
+        _deaths(n, r)
     # Crowds chasing one target re-compress a little every loop; settle them before anyone observes the state. When
     # the last pass pushed nothing, nothing has moved since, and a settling pass would push nothing either.
     if worst > 0.0:
         for _ in range(_SETTLE_PASSES):
-            if _separation(n, side, alive, x, y, x_at_loop, y_at_loop, order, order_x, order_y, target, stance,
-                           slot_stats, walk, order_by_x, sort_key, max_radius) < _SETTLED:
+            if _separation(n, r, slot_stats, walk, max_radius) < _SETTLED:
                 break
     # Through a view: inlined into step_batch's prange body, ``st.loop[b] += n_loops`` wrote to a private copy
     # (numba 0.68 drops item writes to a named tuple's 1-D field in a parfor; writes through views land).
-    loop = st.loop[b:b + 1]
-    loop[0] += n_loops
+    r.loop[0] += n_loops
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def step_battles(start, stop, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                 n_loops, active, jitter, by_x, key, engaged, x0, y0, units):
+def step_battles(start, stop, st, cmd, slot_stats, terrain, n_loops, active, jitter, scratch, units):
     """Apply the commands, then run ``n_loops`` game loops, for battles ``start`` to ``stop - 1`` with ``active[b]``,
     on the calling thread.
 
-    ``units`` selects the overload: ``GENERIC`` (an empty tuple) reads the number of units from the state's shape;
-    ``units_marker(n)`` (a tuple of n zeros) compiles an overload for exactly n units (``step_kernels_for``).
+    ``st``: the :class:`~smac_hard_gym.engine.state.BattleState`; ``cmd``: the
+    :class:`~smac_hard_gym.engine.state.Commands`; ``slot_stats`` (U, columns) float64: the unit table row of each
+    slot; ``terrain``: the map's :class:`~smac_hard_gym.engine.terrain.Terrain`; ``active`` (B,) bool; ``jitter``
+    (2,) float64: the cooldown delay's range in game loops, (0, 0) for none; ``scratch``: the
+    :class:`~smac_hard_gym.engine.state.Scratch` working arrays. ``units`` selects the overload: ``GENERIC`` (an empty
+    tuple) reads the number of units from the state's shape; ``units_marker(n)`` (a tuple of n zeros) compiles an
+    overload for exactly n units (``step_kernels_for``).
     """
     n = st.alive.shape[1] if len(units) == 0 else len(units)
     for b in range(start, stop):
         if active[b]:
-            _step_battle(n, b, st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field,
-                         n_loops, jitter, by_x, key, engaged, x0, y0)
+            _step_battle(n, b, st, cmd, slot_stats, terrain, n_loops, jitter, scratch)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", _nrt=False)
-def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, los, open_field, n_loops, active,
-               jitter, by_x, key, engaged, x0, y0, workers, next_battle, units):
-    """``step_battles`` over the whole batch on numba's threads (``units``: the overload, as there).
+def step_batch(st, cmd, slot_stats, terrain, n_loops, active, jitter, scratch, workers, next_battle, units):
+    """``step_battles`` over the whole batch on numba's threads (the arguments and ``units`` as there).
 
     One prange iteration per worker thread (``workers``: numba's thread count); each takes chunks of battles from
     ``next_battle`` (an int64 array of one element, the shared counter) until all are taken (see ``scheduling``).
@@ -923,8 +985,8 @@ def step_batch(st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk, next_hop, l
             start = fetch_add(next_battle, chunk)
             if start >= n_battles:
                 break
-            step_battles(start, min(start + chunk, n_battles), st, kind, cmd_target, cmd_x, cmd_y, slot_stats, walk,
-                         next_hop, los, open_field, n_loops, active, jitter, by_x, key, engaged, x0, y0, units)
+            step_battles(start, min(start + chunk, n_battles), st, cmd, slot_stats, terrain, n_loops, active, jitter,
+                         scratch, units)
 
 
 GENERIC = ()  # ``units`` of the overloads that read the unit count from the state's shape

@@ -80,6 +80,37 @@ class Commands(NamedTuple):
         self.target[:] = NO_UNIT
 
 
+class Scratch(NamedTuple):
+    """Working arrays of the step kernels, (B, U) like the state, allocated once per engine (``BattleEngine``).
+
+    Nothing outside a step reads them, and no step's outcome depends on what a previous step left in them (``by_x``
+    is only a faster starting point for the next sort).
+
+    by_x: int32 slots: each battle's slots in x order, for separation's sweep; kept between steps, when it is nearly
+        sorted (any permutation of the slots is valid).
+    key: float64 world x of ``by_x``'s slots (the sort's keys).
+    engaged: int32 slot: each unit's target when the current game loop began (targeting's "who attacks me").
+    x0, y0: float64 world position of each unit when movement began (units move simultaneously); separation then
+        sums its pushes in them (world units).
+    """
+
+    by_x: np.ndarray
+    key: np.ndarray
+    engaged: np.ndarray
+    x0: np.ndarray
+    y0: np.ndarray
+
+    @classmethod
+    def empty(cls, batch: int, n_units: int) -> Scratch:
+        return cls(
+            by_x=np.tile(np.arange(n_units, dtype=np.int32), (batch, 1)),
+            key=np.zeros((batch, n_units), dtype=np.float64),
+            engaged=np.zeros((batch, n_units), dtype=np.int32),
+            x0=np.zeros((batch, n_units), dtype=np.float64),
+            y0=np.zeros((batch, n_units), dtype=np.float64),
+        )
+
+
 _FIELD_DTYPES = {
     "utype": np.int32, "side": np.int8, "alive": np.bool_, "x": np.float64, "y": np.float64,
     "health": np.float64, "shield": np.float64, "energy": np.float64, "cooldown": np.float64,
