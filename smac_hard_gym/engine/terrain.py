@@ -28,6 +28,10 @@ from smac_hard_gym.maps import MapSpec
 MOVER_GROUND, MOVER_CLIFF, MOVER_AIR = 0, 1, 2
 
 _LOS_SAMPLE = 0.2  # world units between line-of-sight samples
+# A cell's 8 neighbours as (dx, dy, step length), in the order the path tables scan them: the order breaks ties
+# between equally short paths, so it is part of the tables' contents.
+_NEIGHBOURS = tuple((dx, dy, 1.4142135623730951 if dx != 0 and dy != 0 else 1.0)
+                    for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx != 0 or dy != 0)
 
 
 class Terrain(NamedTuple):
@@ -71,6 +75,15 @@ def cliff_walk_grid(pathable: np.ndarray, cliff: np.ndarray, reach: int = 2) -> 
 
 
 @njit(cache=True)
+def _walkable(walk: np.ndarray, x: int, y: int) -> int:
+    """Cell number of (x, y) if it is on the map and walkable, else -1."""
+    mx, my = walk.shape
+    if 0 <= x < mx and 0 <= y < my and walk[x, y]:
+        return x * my + y
+    return -1
+
+
+@njit(cache=True)
 def _distance_field(walk: np.ndarray, goal: int) -> np.ndarray:
     """Octile shortest-path distance from every cell to ``goal`` (Dijkstra, 8-connected)."""
     mx, my = walk.shape
@@ -82,17 +95,12 @@ def _distance_field(walk: np.ndarray, goal: int) -> np.ndarray:
         if d > dist[c]:
             continue
         cx, cy = c // my, c % my
-        for dx in range(-1, 2):
-            for dy in range(-1, 2):
-                if dx == 0 and dy == 0:
-                    continue
-                nx, ny = cx + dx, cy + dy
-                if 0 <= nx < mx and 0 <= ny < my and walk[nx, ny]:
-                    nc = nx * my + ny
-                    nd = d + (1.4142135623730951 if dx != 0 and dy != 0 else 1.0)
-                    if nd < dist[nc]:
-                        dist[nc] = nd
-                        heapq.heappush(heap, (nd, nc))
+        for dx, dy, step in _NEIGHBOURS:
+            nc = _walkable(walk, cx + dx, cy + dy)
+            nd = d + step
+            if nc >= 0 and nd < dist[nc]:
+                dist[nc] = nd
+                heapq.heappush(heap, (nd, nc))
     return dist
 
 
@@ -111,17 +119,14 @@ def _next_hops_from_fields(walk: np.ndarray, dist: np.ndarray, goal: int, out: n
                 continue
             best = -1
             best_d = np.inf
-            for dx in range(-1, 2):
-                for dy in range(-1, 2):
-                    if dx == 0 and dy == 0:
-                        continue
-                    nx, ny = cx + dx, cy + dy
-                    if 0 <= nx < mx and 0 <= ny < my and walk[nx, ny]:
-                        step = 1.4142135623730951 if dx != 0 and dy != 0 else 1.0
-                        d = dist[nx * my + ny] + step
-                        if d < best_d - 1e-9:
-                            best_d = d
-                            best = nx * my + ny
+            for dx, dy, step in _NEIGHBOURS:
+                nc = _walkable(walk, cx + dx, cy + dy)
+                if nc < 0:
+                    continue
+                d = dist[nc] + step
+                if d < best_d - 1e-9:
+                    best_d = d
+                    best = nc
             out[c] = best
 
 
