@@ -130,9 +130,14 @@ class NativeVectorEnv(VectorEnv):
         avail, obs, state = self.core.encode(RED)
         return self.view.observation(avail, obs, state), self._info(np.zeros(self.num_envs, dtype=bool), rows, avail)
 
-    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    def step(self, actions: Any, *, checked: bool = False
+             ) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One step of every battle with actions ``(num_envs, n_agents)``; actions are checked as in
-        :class:`~smac_hard_gym.envs.gym_env.SMACHardEnv`, and a rejected step changes nothing."""
+        :class:`~smac_hard_gym.envs.gym_env.SMACHardEnv`, and a rejected step changes nothing.
+
+        ``checked``: ``actions`` is already what :func:`~smac_hard_gym.smac.actions.validate_actions` returns (a
+        fresh int64 array of that shape, in range), as a :class:`~smac_hard_gym.envs.subproc.SubprocVectorEnv`
+        sends its workers: not validated again (availability still is)."""
         if self._needs_reset:
             raise ResetNeededError("call reset() before step(): no episode has started")
         mode = self.autoreset_mode
@@ -140,7 +145,7 @@ class NativeVectorEnv(VectorEnv):
             raise ResetNeededError(f"battles {np.flatnonzero(self._ended).tolist()} ended and autoreset is "
                                    "disabled; reset them with reset(options={'reset_mask': mask}) before stepping")
         core, view = self.core, self.view
-        result = core.step(actions, replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT)
+        result = core.step(actions, replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT, checked=checked)
         step = view.translate(result)
         terminated, truncated = step.terminated, step.truncated
         ended = terminated | truncated

@@ -347,15 +347,16 @@ class SubprocVectorEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every worker's battles. Actions are checked here, before any worker steps, so a rejected step
-        (``TypeError`` / ``ValueError``, as the native env raises them) leaves every battle as it was."""
+        (``TypeError`` / ``ValueError``, as the native env raises them) leaves every battle as it was, and the
+        error comes without a round trip; the workers' native envs then do not validate them again."""
         self._check_open()
         self._check_steppable()
-        actions = self._check_actions(actions)
+        actions, checked = self._check_actions(actions)
         for worker in self._workers:
             if worker.needs_reset:
                 self._send(worker, "reset", (None, None))
             else:
-                self._send(worker, "step", actions[worker.rows])
+                self._send(worker, "step", (actions[worker.rows], checked))
         replies = self._gather(self._workers, self.timeout, "step")
         failures = _failures(replies)
         restarted: dict[int, Any] = {}
@@ -400,20 +401,20 @@ class SubprocVectorEnv(VectorEnv):
                 parts.append({"obs": obs_part, "infos": info})
         return parts, rewards, terminated, truncated
 
-    def _check_actions(self, actions: Any) -> np.ndarray:
+    def _check_actions(self, actions: Any) -> tuple[np.ndarray, bool]:
         """Type, shape and range against the action space; availability against the latest masks when the workers
-        raise on unavailable actions (rows whose episode ended last step are reset by it, so not checked)."""
-        checked = _checked_action_shape(self.single_action_space, self.num_envs)
-        if checked is None:  # other spaces: the workers' envs check them
+        raise on unavailable actions (rows whose episode ended last step are reset by it, so not checked). Returns
+        the actions and whether they were validated (SMAC-like spaces; the workers' envs check other spaces)."""
+        shape = _checked_action_shape(self.single_action_space, self.num_envs)
+        if shape is None:
             acts = np.asarray(actions)
             if acts.shape[:1] != (self.num_envs,):
                 raise ValueError(f"actions must have one row per battle ({self.num_envs}), got shape {acts.shape}")
-            return acts
-        acts = validate_actions(actions, *checked, "red")
-        if self.invalid_action != "raise" or not self.mask_size or not self._masks_seen:
-            return acts
-        self._check_available(acts)
-        return acts
+            return acts, False
+        acts = validate_actions(actions, *shape, "red")
+        if self.invalid_action == "raise" and self.mask_size and self._masks_seen:
+            self._check_available(acts)
+        return acts, True
 
     def _check_available(self, acts: np.ndarray) -> None:
         """Raise :class:`InvalidActionError` for the first unavailable action of a battle that did not just end."""

@@ -5,7 +5,8 @@ The message protocol (every message is a tuple, sent with ``Connection.send``):
 
 - parent to worker: ``(command, payload)`` with
     ``("attach", (block_name, layout, start, stop))``: write rows ``start:stop`` of that shared block from now on;
-    ``("reset", (seed, options))``; ``("step", actions)``; ``("call", (name, args, kwargs))``; ``("close", None)``.
+    ``("reset", (seed, options))``; ``("step", (actions, checked))`` (``checked``: the parent validated the
+    actions, see ``BatchWorker.step``); ``("call", (name, args, kwargs))``; ``("close", None)``.
 - worker to parent: ``("ok", value)`` or ``("error", (pickled_exception_or_None, traceback_text))``; one answer per
   command (none to ``close``), and a first one when the worker starts: ``describe()``, or the error that stopped it
   building its env. ``reset`` answers ``(obs_or_None, infos)``, ``step`` answers ``(obs_or_None, rewards,
@@ -33,10 +34,12 @@ from smac_hard_gym.envs.autoreset import AUTORESET_NAMES
 from smac_hard_gym.envs.subproc.safe_pickle import safe_loads
 from smac_hard_gym.envs.subproc.shared_memory import SharedBlock, write_masks, write_obs
 from smac_hard_gym.lifetime import die_with_parent
+from smac_hard_gym.smac.kernels import is_plain
 
 __all__ = ["BatchWorker", "Server", "worker_main", "pack_error", "unpack_error", "limit_threads"]
 
 _ORPHAN_POLL = 1.0  # seconds between checks that the parent is still there
+_INT64 = np.dtype(np.int64)
 
 
 class BatchWorker:
@@ -54,6 +57,9 @@ class BatchWorker:
         if not isinstance(env, VectorEnv):
             raise TypeError(f"a worker factory must return a gymnasium VectorEnv or Env, got {type(env).__name__}")
         self.env = env
+        from smac_hard_gym.envs.vector import NativeVectorEnv
+
+        self._takes_checked = isinstance(env, NativeVectorEnv)  # its step can skip validating (``step``)
 
     def describe(self) -> dict[str, Any]:
         """Sizes, spaces and modes of this worker's batch."""
@@ -69,7 +75,15 @@ class BatchWorker:
     def reset(self, seed: Any = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         return self.env.reset(seed=seed, options=options)
 
-    def step(self, actions: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    def step(self, actions: np.ndarray, checked: bool = False
+             ) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step the batch. ``checked``: ``actions`` is what :func:`~smac_hard_gym.smac.actions.validate_actions`
+        returned for this batch's shape and action count (the parent validated them), so a
+        :class:`~smac_hard_gym.envs.vector.NativeVectorEnv` does not validate them again; other envs check their
+        actions as they always do, and so does it when they arrive read-only (a transport's zero-copy buffer: the
+        core writes replacements into the array it is given, and validation copies)."""
+        if checked and self._takes_checked and is_plain(actions, _INT64, 2):
+            return self.env.step(actions, checked=True)
         return self.env.step(actions)
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> Any:
@@ -176,7 +190,7 @@ class Server:
             obs, infos = self.worker.reset(*payload)
             return self._obs(obs), self._infos(infos)
         if command == "step":
-            obs, rewards, terminated, truncated, infos = self.worker.step(payload)
+            obs, rewards, terminated, truncated, infos = self.worker.step(*payload)
             return (self._obs(obs), np.asarray(rewards), np.asarray(terminated), np.asarray(truncated),
                     self._infos(infos))
         if command == "call":
