@@ -317,6 +317,7 @@ def test_dry_run_prints_the_plan(tmp_path, capsys):
     assert not (tmp_path / "results.json").exists()
 
 
+@pytest.mark.long  # trains a tiny sweep end to end: 96 s at load 8
 def test_tiny_sweep_end_to_end(tmp_path, capsys):
     out = tmp_path / "results"
     code = main(["baselines", "--maps", "3m", "--seeds", "1", "--opponents", "smac", "--timesteps", "256",

@@ -74,6 +74,7 @@ def test_must_reach_ratios_and_verdicts():
     assert "native best batch >= 5x SMAX best batch, 27m_vs_30m" not in targets  # no figures, no verdict
 
 
+@pytest.mark.long  # every section, subprocess workers included: 53 s at load 8
 def test_bench_vector_cli_writes_every_section_it_is_asked_for(tmp_path, capsys):
     out = tmp_path / "run" / "bench.json"
     code = main(["bench", "vector", "--maps", "3m", "--num-envs", "2", "--sections",
@@ -140,6 +141,7 @@ def test_bench_engine_cli_writes_an_engine_result(tmp_path):
     assert doc["benchmark"] == "engine" and doc["results"][0]["num_envs"] == 2
 
 
+@pytest.mark.long  # PPO training runs, 3 variants x 2 rounds: 26 s at load 8
 def test_bench_train_interleaves_both_variants_to_the_same_weights(tmp_path, capsys):
     out = tmp_path / "train.json"
     assert main(["bench", "train", "--map", "3m", "--timesteps", "2048", "--rounds", "2", "--json", str(out)]) == 0

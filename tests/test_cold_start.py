@@ -137,6 +137,7 @@ def _assert_ran(result: subprocess.CompletedProcess) -> None:
     assert result.stdout.strip().splitlines()[-1] in ("ok", "[]"), result.stdout[-2000:]
 
 
+@pytest.mark.long  # compiles every kernel from empty in worker processes: 213 s at load 8 on 2 cores
 def test_subproc_env_starts_on_an_empty_cache_and_a_second_process_compiles_nothing(tmp_path):
     cache = tmp_path / "numba-cache"
     cold = _run(tmp_path, "subproc", _SUBPROC, cache, "forkserver")

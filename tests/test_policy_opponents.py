@@ -125,6 +125,7 @@ def test_prioritized_league_weights_follow_the_learners_losses():
         league.add(PolicyScript(attack_first, "base"))
 
 
+@pytest.mark.long  # two PPO training runs: 37 s at load 8
 def test_train_against_a_saved_model_in_league_mode(tmp_path):
     pytest.importorskip("sb3_contrib")
     common = ["--map", "3m", "--num-envs", "8", "--n-steps", "16", "--batch-size", "64", "--epochs", "1",

@@ -17,6 +17,8 @@ from smac_hard_gym.envs.subproc import RESTART_KEY, WorkerError, make_subproc_en
 from smac_hard_gym.envs.vector import NativeVectorEnv  # noqa: E402
 from smac_hard_gym.wrappers.ray_vec import RayVectorEnv, make_ray_vec  # noqa: E402
 
+pytestmark = pytest.mark.long  # a local Ray and its actors: 127 s for the module at load 8 on 2 cores
+
 TEST_DEADLINE = 240  # seconds any one test may take on a loaded 2-core machine
 HANG_BOUND = 150  # seconds: a hung actor's replacement (timeout=3 s) must come well before its 600 s sleep ends
 
