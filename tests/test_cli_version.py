@@ -32,7 +32,7 @@ def test_version_falls_back_without_metadata(monkeypatch):
     assert smac_hard_gym._read_version() == "0+unknown"
 
 
-def test_cli_version(capsys):
+def test_version_flag_prints_the_installed_package_version(capsys):
     with pytest.raises(SystemExit) as info:
         main(["--version"])
     assert info.value.code == 0
