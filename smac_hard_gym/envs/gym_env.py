@@ -109,6 +109,7 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
         ``action_mask`` after reset.
 
     Arguments
+        Keyword options, gymnasium-style, each passed by name to the core (hence more than a dozen parameters).
         ``map_name``; ``opponent`` (``"default"`` = the map's SMAC-HARD pool, ``"blackbox"``, ``"base"``, any script
         name, a user script reference, a Script, or a list of them) and ``opponent_probs``; ``obs_mode``;
         ``invalid_action`` (``"noop"``, the default, or ``"raise"``); ``render_mode`` (``"rgb_array"`` or ``"human"``);
