@@ -168,7 +168,7 @@ def test_an_opponent_error_leaves_the_core_usable_after_reset():
     assert result.stepped.all() and core.episode_step.tolist() == [3, 3]
 
 
-def test_mode_rules():
+def test_two_player_core_rejects_the_other_modes_actions_and_options():
     with pytest.raises(ValueError, match="needs blue's actions"):
         TwoPlayerCore("3m", 1, mode="self-play").step([[1, 1, 1]])
     with pytest.raises(ValueError, match="pass red's actions only"):

@@ -332,7 +332,7 @@ def test_concat_infos_fills_missing_keys():
     assert joined["b"].tolist() == [None, None, "x"] and joined["_b"].tolist() == [False, False, True]
 
 
-def test_bad_arguments():
+def test_bad_subproc_arguments_raise_naming_the_argument():
     with pytest.raises(ValueError, match="on_worker_error must be one of"):
         SubprocVectorEnv([functools.partial(TickEnv)], on_worker_error="ignore")
     with pytest.raises(ValueError, match="start_method must be one of"):
@@ -365,3 +365,28 @@ def test_the_unit_table_cannot_be_rewritten():
 
     with pytest.raises(ValueError, match="read-only"):
         STATS[0, 0] = 1.0
+
+
+def test_a_subproc_worker_does_not_validate_actions_its_parent_checked(monkeypatch):
+    """The parent validates a step's actions before any worker steps; the worker's native env then skips the core's
+    own check (``checked``), and validates what it was not told is checked, so each action is validated once."""
+    from smac_hard_gym.envs import core as core_module
+    from smac_hard_gym.envs.subproc.worker import BatchWorker
+
+    validate = core_module.validate_actions
+    calls: list[str] = []
+
+    def counting(actions, shape, n_actions, who="red"):
+        calls.append(who)
+        return validate(actions, shape, n_actions, who)
+
+    monkeypatch.setattr(core_module, "validate_actions", counting)
+    worker = BatchWorker(functools.partial(NativeVectorEnv, "3m", 2))
+    try:
+        worker.reset(0, None)
+        worker.step(np.ones((2, 3), dtype=np.int64), checked=True)
+        assert calls == []
+        worker.step(np.ones((2, 3), dtype=np.int64), checked=False)
+        assert calls == ["red"]
+    finally:
+        worker.env.close()
