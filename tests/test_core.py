@@ -215,21 +215,13 @@ def test_odd_action_arrays_step_exactly_as_plain_ones():
         np.testing.assert_array_equal(plain, odd)
 
 
-def test_every_api_validates_actions_once(monkeypatch):
+def test_every_api_validates_actions_once(validation_calls):
     """The env layers validate actions and pass ``checked=True``: the core does not validate them again (blue's
     included, in self-play), while its own callers still get validation."""
-    from smac_hard_gym.envs import core as core_module
     from smac_hard_gym.envs.starcraft2 import StarCraft2Env
     from smac_hard_gym.pettingzoo import parallel_env
 
-    validate = core_module.validate_actions
-    calls: list[str] = []
-
-    def counting(actions, shape, n_actions, who="red"):
-        calls.append(who)
-        return validate(actions, shape, n_actions, who)
-
-    monkeypatch.setattr(core_module, "validate_actions", counting)
+    calls = validation_calls
     env = StarCraft2Env("3m", mode="self-play")
     env.reset()
     env.step([[1, 1, 1], [1, 1, 1]])

@@ -367,20 +367,12 @@ def test_the_unit_table_cannot_be_rewritten():
         STATS[0, 0] = 1.0
 
 
-def test_a_subproc_worker_does_not_validate_actions_its_parent_checked(monkeypatch):
+def test_a_subproc_worker_does_not_validate_actions_its_parent_checked(validation_calls):
     """The parent validates a step's actions before any worker steps; the worker's native env then skips the core's
     own check (``checked``), and validates what it was not told is checked, so each action is validated once."""
-    from smac_hard_gym.envs import core as core_module
     from smac_hard_gym.envs.subproc.worker import BatchWorker
 
-    validate = core_module.validate_actions
-    calls: list[str] = []
-
-    def counting(actions, shape, n_actions, who="red"):
-        calls.append(who)
-        return validate(actions, shape, n_actions, who)
-
-    monkeypatch.setattr(core_module, "validate_actions", counting)
+    calls = validation_calls
     worker = BatchWorker(functools.partial(NativeVectorEnv, "3m", 2))
     try:
         worker.reset(0, None)
