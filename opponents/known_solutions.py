@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from smac_hard_gym.opponents.generic import READY_LOOPS as FIRES_THIS_STEP
 from smac_hard_gym.opponents.helpers import (
     BatchScript,
     Frame,
@@ -297,7 +298,7 @@ class ArcFocus(BatchScript):
         per_hit = own[:, None, S["damage"]] + np.where(bonus, own[:, None, S["bonus_damage"]], 0.0)
         per_shot = (np.maximum(per_hit - enemy[None, :, S["armor"]], 0.5) * own[:, None, S["hits"]])[None]  # (1, n, m)
         shots_needed = np.ceil(frame.enemy_hp[:, None, :] / per_shot)  # (R, n, m), per shooter type
-        ready = frame.own_cooldown <= 8.0  # fires within this env step
+        ready = frame.own_cooldown <= FIRES_THIS_STEP
         targets = nearest(frame.dist, frame.targetable)
         hp = frame.enemy_hp
         for r in range(frame.size):

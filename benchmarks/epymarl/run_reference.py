@@ -256,8 +256,8 @@ def sacred_completed(job_dir: Path) -> bool:
         return False
 
 
-def mark_done(job_dir: Path, t_max: int, how: str) -> None:
-    ckpts = checkpoints(job_dir, job_dir.parts[-3])
+def mark_done(job: Job, job_dir: Path, t_max: int, how: str) -> None:
+    ckpts = checkpoints(job_dir, job.algo)
     (job_dir / "done.json").write_text(json.dumps(
         {"finished": dt.datetime.now().isoformat(timespec="seconds"), "t_max": t_max, "how": how,
          "last_checkpoint_t_env": ckpts[-1][0] if ckpts else None}, indent=1) + "\n")
@@ -282,7 +282,7 @@ class Pool:
         job_dir = job.dir(self.args.out)
         text = (job_dir / "logs" / f"{next_index(job_dir) - 1}.log").read_text(errors="replace")
         if rc in (0, None) and "Finished Training" in text:
-            mark_done(job_dir, self.args.t_max, "log: Finished Training")
+            mark_done(job, job_dir, self.args.t_max, "log: Finished Training")
             log(f"done  {job.name}")
         else:
             log(f"FAILED {job.name} (exit {rc}); see its log. It is retried on the next launch.")
@@ -376,7 +376,7 @@ def main(argv: list[str] | None = None) -> int:
         d = job.dir(args.out)
         pid = pid_alive(d)
         if not pid and not (d / "done.json").is_file() and sacred_completed(d):
-            mark_done(d, args.t_max, "sacred run.json: COMPLETED")
+            mark_done(job, d, args.t_max, "sacred run.json: COMPLETED")
         done = (d / "done.json").is_file()
         ck = checkpoints(d, job.algo)
         began = started_on(d)
