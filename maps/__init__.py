@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from smac_hard_gym.units import UNITS, unit_index
+from smac_hard_gym.engine.units import UNITS, unit_index
 
 DATA_DIR = Path(__file__).parent / "data"
 MAP_PATH_ENV = "SMAC_HARD_GYM_MAP_PATH"

@@ -23,8 +23,8 @@ from functools import cached_property
 import numpy as np
 
 from smac_hard_gym.engine.state import BLUE, RED, BattleState, Commands
+from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.maps import MapSpec, UnitGroup
-from smac_hard_gym.units import STATS, S
 
 __all__ = ["SideView", "Script", "ScriptError", "RED", "BLUE", "spawn_centre", "read_only_spec", "frozen_copy"]
 

@@ -40,9 +40,9 @@ from smac_hard_gym.engine.state import (
     NO_UNIT,
     Commands,
 )
+from smac_hard_gym.engine.units import BIO, STATS, UNITS, WEAPON_HEAL, S
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.opponents.api import RED, Script, SideView, lazy_property
-from smac_hard_gym.units import BIO, STATS, UNITS, WEAPON_HEAL, S
 
 __all__ = [
     "CAN_HIT", "Frame", "Memory", "Orders", "nearest", "lowest", "argmin_masked", "within", "centroid",

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.opponents.generic import READY_LOOPS as FIRES_THIS_STEP
 from smac_hard_gym.opponents.helpers import (
     BatchScript,
@@ -56,7 +57,6 @@ from smac_hard_gym.opponents.helpers import (
     support_healers,
     to_pathable,
 )
-from smac_hard_gym.units import STATS, S
 
 __all__ = ["AlternatingAggro", "TankSwap", "StalkerKite", "HoldChoke", "OpenFight", "ArcFocus", "HideThenPickOff",
            "Claim",

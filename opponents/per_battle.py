@@ -33,9 +33,9 @@ from smac_hard_gym.engine.state import (
     CMD_STOP,
     Commands,
 )
+from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.opponents.api import Script, SideView
-from smac_hard_gym.units import STATS, S
 
 __all__ = ["PerBattleScript", "BattleView", "UnitRows"]
 

@@ -12,7 +12,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from smac_hard_gym.engine import SC2_COOLDOWN_JITTER, BattleEngine
+from smac_hard_gym.engine import BattleEngine
+from smac_hard_gym.engine.battle import SC2_COOLDOWN_JITTER
 from smac_hard_gym.engine.state import BattleState, Commands
 from smac_hard_gym.maps import MapSpec
 

@@ -75,7 +75,7 @@ def shot_loop(n: int, period_loops: float) -> int:
 
 def overlaps(engine: BattleEngine, b: int) -> list[tuple[int, int, float]]:
     """Pairs of alive units of one collision plane whose circles overlap, with the overlap depth."""
-    from smac_hard_gym.units import STATS, S
+    from smac_hard_gym.engine.units import STATS, S
 
     st = engine.state
     alive = np.flatnonzero(st.alive[b])

@@ -19,8 +19,8 @@ from engine_helpers import battle_rows_of, engine_with
 from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, BattleEngine, Commands
 from smac_hard_gym.engine.kernels import _separation
 from smac_hard_gym.engine.state import ORDER_IDLE
+from smac_hard_gym.engine.units import STATS, unit_index
 from smac_hard_gym.maps import load_map
-from smac_hard_gym.units import STATS, unit_index
 
 
 def _standard_units_on_both_sides(map_name: str):

@@ -13,7 +13,7 @@ import pytest
 from engine_helpers import engine_with, overlaps
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_MOVE, BattleEngine, Commands
-from smac_hard_gym.units import STATS, S
+from smac_hard_gym.engine.units import STATS, S
 
 STEP_DISTANCE = {  # speed / 2, from the unit facts
     "Marine_RL": 2.25 / 2, "Marauder_RL": 2.25 / 2, "Medivac_RL": 2.75 / 2, "Medivac": 3.5 / 1.4 / 2,

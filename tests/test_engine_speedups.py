@@ -15,13 +15,13 @@ import pytest
 from engine_helpers import battle_rows_of, engine_with
 from numba import njit, prange
 
-import smac_hard_gym.engine as engine_module
+import smac_hard_gym.engine.battle as battle_module
 from smac_hard_gym.engine import BattleEngine, Commands
 from smac_hard_gym.engine.batch_ops import count_alive
 from smac_hard_gym.engine.kernels import _separation, _sort_by_x, step_kernels_for
 from smac_hard_gym.engine.scheduling import fetch_add
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_MOVE, ORDER_HOLD, ORDER_IDLE, BattleState
-from smac_hard_gym.units import STATS, S, unit_index
+from smac_hard_gym.engine.units import STATS, S, unit_index
 
 RADIUS = {"marine": 0.375, "zealot": 0.5, "stalker": 0.625, "colossus": 1.0, "medivac": 0.75, "spine_crawler": 1.125}
 PLANE = {"marine": 0, "zealot": 0, "stalker": 0, "spine_crawler": 0, "colossus": 1, "medivac": 2}  # ground, cliff, air
@@ -146,16 +146,16 @@ def test_parallel_step_equals_serial_step_and_skips_inactive_battles(monkeypatch
     batch = 100  # not a multiple of the chunk size: the last chunk is short
     parallel, serial = BattleEngine("2s3z", batch_size=batch), BattleEngine("2s3z", batch_size=batch)
     rng = np.random.default_rng(5)
-    threshold = engine_module.PARALLEL_MIN_BATCH
+    threshold = battle_module.PARALLEL_MIN_BATCH
     assert batch >= threshold
     for step in range(30):
         cmd = _random_commands(parallel, rng)
         active = rng.random(batch) < 0.8
         before = [a.copy() for a in parallel.state]
         parallel.step(cmd, active)
-        monkeypatch.setattr(engine_module, "PARALLEL_MIN_BATCH", batch + 1)
+        monkeypatch.setattr(battle_module, "PARALLEL_MIN_BATCH", batch + 1)
         serial.step(cmd, active)
-        monkeypatch.setattr(engine_module, "PARALLEL_MIN_BATCH", threshold)
+        monkeypatch.setattr(battle_module, "PARALLEL_MIN_BATCH", threshold)
         for name, p, s, old in zip(BattleState._fields, parallel.state, serial.state, before, strict=True):
             assert np.array_equal(p, s), (step, name)
             assert np.array_equal(p[~active], old[~active]), (step, name)
@@ -179,8 +179,8 @@ def test_kernels_compiled_for_the_unit_count_step_exactly_as_the_generic_ones():
 
 
 def test_big_batches_specialize_by_default_and_bad_choices_are_named():
-    assert BattleEngine("3m", batch_size=engine_module.SPECIALIZE_MIN_BATCH).specialized
-    assert not BattleEngine("3m", batch_size=engine_module.SPECIALIZE_MIN_BATCH - 1).specialized
+    assert BattleEngine("3m", batch_size=battle_module.SPECIALIZE_MIN_BATCH).specialized
+    assert not BattleEngine("3m", batch_size=battle_module.SPECIALIZE_MIN_BATCH - 1).specialized
     with pytest.raises(ValueError, match="specialize must be True, False or None.*'yes'"):
         BattleEngine("3m", specialize="yes")
     with pytest.raises(ValueError, match="n_units must be a positive int.*0"):

@@ -13,10 +13,10 @@ import pytest
 
 from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import BLUE, RED
+from smac_hard_gym.engine.units import UNITS
 from smac_hard_gym.maps import SMAC_MAPS, load_map
 from smac_hard_gym.smac.actions import available_actions
 from smac_hard_gym.smac.features import SideFeatures, SmacOptions
-from smac_hard_gym.units import UNITS
 
 # docs/smac_interface.md §4: default-config sizes (n_actions, obs, state).
 SMAC_SIZES = {

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from smac_hard_gym.engine.state import BLUE, BattleState
+from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.opponents.api import SideView
 from smac_hard_gym.opponents.helpers import Frame, Orders
 from smac_hard_gym.opponents.marines import LineAdvance
-from smac_hard_gym.units import STATS, S
 
 
 def _random_states(map_name, count, seed):

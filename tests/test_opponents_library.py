@@ -18,11 +18,11 @@ from smac_hard_gym.engine.state import (
     RED,
     Commands,
 )
+from smac_hard_gym.engine.units import STATS, UNITS, S
 from smac_hard_gym.envs.duel import run_duel
 from smac_hard_gym.maps import list_maps
 from smac_hard_gym.opponents import POOLS, SideView, make_opponent, scripts_for_map
 from smac_hard_gym.opponents.base import SMAC_HARD_BASE_POINTS
-from smac_hard_gym.units import STATS, UNITS, S
 
 
 class Battle:

@@ -18,6 +18,7 @@ import pytest
 
 from smac_hard_gym.engine import CMD_ATTACK_MOVE, NO_UNIT, BattleEngine, Commands
 from smac_hard_gym.engine.state import BLUE, RED
+from smac_hard_gym.engine.units import UNITS
 from smac_hard_gym.envs.duel import record_engine_episode
 from smac_hard_gym.render import (
     BattleRenderer,
@@ -28,7 +29,6 @@ from smac_hard_gym.render import (
     write_video,
 )
 from smac_hard_gym.render import renderer as rmod
-from smac_hard_gym.units import UNITS
 
 MAP_CELLS = 32  # every SMAC map is 32 x 32 cells
 MARINE_RADIUS, MEDIVAC_RADIUS, BANELING_SPLASH = 0.375, 0.75, 2.2

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from smac_hard_gym.cli import main
+from smac_hard_gym.engine.units import UNITS, unit_index
 from smac_hard_gym.maps import load_map
 from smac_hard_gym.opponents.sandbox import SUPPORTED
 from smac_hard_gym.scriptlab import (
@@ -26,7 +27,6 @@ from smac_hard_gym.scriptlab import (
     run_lab,
 )
 from smac_hard_gym.scriptlab.client import Transcript
-from smac_hard_gym.units import UNITS, unit_index
 
 DATA = Path(__file__).parent / "data" / "scriptlab"
 KEY = "sk-test-secret-0123456789"

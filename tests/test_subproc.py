@@ -361,7 +361,7 @@ def test_a_hang_before_the_first_answer_is_caught_in_minutes_once_kernels_are_ca
 
 
 def test_the_unit_table_cannot_be_rewritten():
-    from smac_hard_gym.units import STATS
+    from smac_hard_gym.engine.units import STATS
 
     with pytest.raises(ValueError, match="read-only"):
         STATS[0, 0] = 1.0

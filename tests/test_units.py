@@ -2,7 +2,7 @@
 
 Each expected number below is derived in a comment from SC2's values (docs/smac_interface.md §8 collects them with
 their sources: the SC2 5.0.3 tech-tree dump, SMAC's UnitData.xml, Liquipedia LotV), not read from
-``smac_hard_gym/units.py``: a wrong health, shield, armour, damage, bonus, weapon period, range or radius in the
+``smac_hard_gym/engine/units.py``: a wrong health, shield, armour, damage, bonus, weapon period, range or radius in the
 table changes a kill loop or a first shot here. Only two kinds of test compare the table itself, each against a
 figure stated outside the code in another form: Liquipedia's Faster-speed speeds and rates, converted.
 
@@ -20,7 +20,7 @@ import pytest
 from engine_helpers import engine_with, loops_until, shot_loop
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_HOLD
-from smac_hard_gym.units import STATS, UNITS, S, unit_index
+from smac_hard_gym.engine.units import STATS, UNITS, S, unit_index
 
 LOOPS = 16  # game loops per Normal second
 FASTER = 1.4  # Normal seconds per Faster second

@@ -210,7 +210,7 @@ def provenance(epymarl: Path) -> str:
 # what decides a reference run's games: the engine, the unit table, the SMAC layer, the envs, the opponents, the maps
 _FINGERPRINT_PACKAGES = ("smac_hard_gym.engine", "smac_hard_gym.smac", "smac_hard_gym.envs",
                          "smac_hard_gym.opponents", "smac_hard_gym.maps")
-_FINGERPRINT_MODULES = ("smac_hard_gym.units", "smac_hard_gym.backend")
+_FINGERPRINT_MODULES = ("smac_hard_gym.backend",)
 
 
 def engine_fingerprint(cwd: Path) -> str:

@@ -140,7 +140,7 @@ def _kernels_to_compile(config: Any) -> list[str] | None:
     evaluation batches step with (as ``BattleEngine`` picks them), and the feature kernels; None when unknown."""
     import numba
 
-    from smac_hard_gym.engine import PARALLEL_MIN_BATCH, SPECIALIZE_MIN_BATCH
+    from smac_hard_gym.engine.battle import PARALLEL_MIN_BATCH, SPECIALIZE_MIN_BATCH
     from smac_hard_gym.kernel_cache import missing_kernels
     from smac_hard_gym.maps import load_map
 

@@ -19,8 +19,8 @@ from typing import NamedTuple
 import numpy as np
 
 from smac_hard_gym.engine.state import BLUE, RED
+from smac_hard_gym.engine.units import UNITS, unit_index
 from smac_hard_gym.maps import MapSpec
-from smac_hard_gym.units import UNITS, unit_index
 
 _GAP = 0.05  # space left between packed units
 

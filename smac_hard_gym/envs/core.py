@@ -66,6 +66,7 @@ import numpy as np
 
 from smac_hard_gym.backend import BACKENDS, Backend, make_backend
 from smac_hard_gym.engine.state import BLUE, RED, Commands
+from smac_hard_gym.engine.units import STATS, WEAPON_HEAL, S
 from smac_hard_gym.maps import MapSpec, load_map
 from smac_hard_gym.opponents import Script, SideView, make_opponent
 from smac_hard_gym.smac.actions import raise_unavailable, validate_actions
@@ -87,7 +88,6 @@ from smac_hard_gym.smac.kernels import (
     finish_encode,
     is_plain,
 )
-from smac_hard_gym.units import STATS, WEAPON_HEAL, S
 
 __all__ = ["TwoPlayerCore", "StepResult", "MODES", "SELF_PLAY_NAME", "RED", "BLUE"]
 

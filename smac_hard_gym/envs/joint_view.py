@@ -13,8 +13,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from gymnasium import spaces
 
+from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.smac.features import RED_WON, SideFeatures
-from smac_hard_gym.units import STATS, S
 
 __all__ = ["JointView", "Transition", "OBS_MODES", "OBS_LOW"]
 

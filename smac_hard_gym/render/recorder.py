@@ -31,8 +31,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from smac_hard_gym.engine.state import BLUE, RED, Commands
+from smac_hard_gym.engine.units import UNITS, unit_index
 from smac_hard_gym.files import atomic_write
-from smac_hard_gym.units import UNITS, unit_index
 
 FORMAT = "smac-hard-gym-episode"
 FORMAT_VERSION = 1

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from smac_hard_gym.engine.state import BLUE, RED
+from smac_hard_gym.engine.units import UNITS, WEAPON_HEAL
 from smac_hard_gym.render import raster
 from smac_hard_gym.render.background import terrain_image
 from smac_hard_gym.render.font import text_mask, text_size
-from smac_hard_gym.units import UNITS, WEAPON_HEAL
 
 DEFAULT_SCALE = 16  # pixels per map cell: a 32x32 SMAC map becomes 512x512 plus the header
 MAX_SCALE = 64

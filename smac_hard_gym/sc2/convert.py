@@ -18,9 +18,9 @@ from s2clientprotocol import sc2api_pb2 as sc_pb
 
 from smac_hard_gym.engine.scenario import Layout
 from smac_hard_gym.engine.state import CMD_NOOP, NO_UNIT, ORDER_IDLE, BattleState, Commands
+from smac_hard_gym.engine.units import UNITS, unit_index
 from smac_hard_gym.sc2 import abilities
 from smac_hard_gym.sc2.errors import Sc2GameError
-from smac_hard_gym.units import UNITS, unit_index
 
 __all__ = ["Roster", "RACES", "type_names", "read_roster", "fill_battle", "raw_actions", "decode_grid"]
 

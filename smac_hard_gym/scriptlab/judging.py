@@ -17,12 +17,12 @@ from typing import Any
 
 import numpy as np
 
+from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.envs.core import TwoPlayerCore
 from smac_hard_gym.envs.duel import WinRates, play
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.opponents import ProcessIsolatedScript, Script, ScriptError, make_opponent
 from smac_hard_gym.smac.features import BLUE_WON, RED_WON
-from smac_hard_gym.units import STATS, S
 
 __all__ = ["LIBRARY_PARTNER", "SOLUTION_PREFIX", "PairingResult", "play_pairing", "library_opponents",
            "format_table", "side_score", "error_result", "code_key"]

@@ -1,7 +1,7 @@
 """The lab's prompts, built from the project's own sources so they never drift from the code:
 
 - the map (:class:`~smac_hard_gym.maps.MapSpec`: units per side, size, pathable share, cliff levels, spawns,
-  episode limit) and the unit table (:data:`smac_hard_gym.units.UNITS`) for the unit types on the map;
+  episode limit) and the unit table (:data:`smac_hard_gym.engine.units.UNITS`) for the unit types on the map;
 - the script API from docstrings (``inspect``): :class:`SideView`, :class:`Script`, :class:`PerBattleScript`,
   :class:`BattleView`, :class:`UnitRows`, and the command constants of :mod:`smac_hard_gym.engine.state`;
 - library scripts' source (``inspect.getsource``) as examples;
@@ -20,8 +20,18 @@ from functools import lru_cache
 import numpy as np
 
 from smac_hard_gym.engine import state as engine_state
+from smac_hard_gym.engine.units import (
+    ARMORED,
+    BIO,
+    LIGHT,
+    LOOPS_PER_SECOND,
+    MASSIVE,
+    MECH,
+    STRUCTURE,
+    UNITS,
+    unit_index,
+)
 from smac_hard_gym.maps import MapSpec
-from smac_hard_gym.units import ARMORED, BIO, LIGHT, LOOPS_PER_SECOND, MASSIVE, MECH, STRUCTURE, UNITS, unit_index
 
 __all__ = ["ROLES", "SCRIPT_CLASS", "map_summary", "unit_table", "api_reference", "example_sources",
            "environment_prompt", "planner_messages", "coder_messages", "critic_messages", "split_sections"]

@@ -38,6 +38,7 @@ import numpy as np
 
 from smac_hard_gym.engine.state import BLUE, RED, BattleState
 from smac_hard_gym.engine.terrain import cliff_height
+from smac_hard_gym.engine.units import STATS, UNITS, WEAPON_HEAL, S, unit_index
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.smac import kernels as fk
 from smac_hard_gym.smac.kernels import (
@@ -49,7 +50,6 @@ from smac_hard_gym.smac.kernels import (
     SHOOT_RANGE,
     SIGHT_RANGE,
 )
-from smac_hard_gym.units import STATS, UNITS, WEAPON_HEAL, S, unit_index
 
 __all__ = [
     "SmacOptions", "SideFeatures", "RewardFunction", "last_action_onehot",

@@ -26,10 +26,10 @@ from s2clientprotocol import sc2api_pb2 as sc_pb
 
 from smac_hard_gym.engine import BattleEngine
 from smac_hard_gym.engine.state import CMD_NOOP, NO_UNIT, ORDER_IDLE, RED, Commands
+from smac_hard_gym.engine.units import STATS, UNITS, S
 from smac_hard_gym.maps import MapSpec
 from smac_hard_gym.sc2 import abilities
 from smac_hard_gym.sc2.convert import RACES
-from smac_hard_gym.units import STATS, UNITS, S
 
 __all__ = ["TestGame", "Lockstep", "DEFAULT_CUSTOM_ID_BASE", "REPLAY_MAGIC"]
 
