@@ -17,6 +17,21 @@ Variants (``--variants``, comma-separated):
 - ``shared-no-vnorm``: without value normalisation;
 - ``shared-popart``: PopArt (value normalisation that rescales the value head to keep its outputs).
 
+``--probe``: no training; scripted learner-side policies on 2s_vs_1sc against "smac", written in the learner's own
+observations and actions (what PPO sees and can do), to measure which behaviours the map rewards (win rate, return,
+discounted return, episode length, and how often the crawler changes target while both stalkers live), on the test
+battles:
+
+- ``attack``: attack the crawler when the action is legal (centre distance 6), else walk north towards it;
+- ``attack-eps0.1``, ``attack-eps0.3``: the same with a random legal action instead, with probability 0.1 or 0.3;
+- ``swap``: a single tank swap: a unit whose health + shields fell to 25 or less while its ally still has 140 or
+  more walks south while it sees the crawler (it leaves the crawler's range, 7 + radii = 8.75 centre to centre,
+  and the crawler turns on the ally), then comes back;
+- ``regen``: shield cycling with health kept in reserve: once a unit's health is 45 or less (and its ally's too, or
+  the ally is dead) and its shields are gone, it walks south out of sight of the crawler and stops there until its
+  shields have regenerated (10 game seconds after the last hit, then 2 per game second), then comes back; plus the
+  swap above. Rewards for this and the others are SMAC's default (damage dealt, kills, the win).
+
 ``--speed``: no evaluation; instead ``--rounds`` interleaved rounds of ``--timesteps`` steps per variant after one
 untimed warm-up rollout (as ``smac-hard-gym bench train``), reporting each round's steps/s and the median. Either
 way the engine's kernels and torch are warmed up first (one untimed rollout per policy kind and obs mode), so the
@@ -24,6 +39,7 @@ first variant does not pay for compilation. Training steps/s counts rollouts and
 apart), like ``train``'s and ``bench train``'s.
 
     nice -n 10 python benchmarks/shared_policy_study.py --maps 3m --seeds 0 --timesteps 20000
+    nice -n 10 python benchmarks/shared_policy_study.py --probe --eval-episodes 256
     nice -n 10 python benchmarks/shared_policy_study.py --maps 27m_vs_30m --speed --timesteps 4096 --rounds 2 \\
         --variants joint,shared
 """
@@ -153,6 +169,103 @@ def speed(args: argparse.Namespace, variants: list[str]) -> list[dict[str, Any]]
     return rows
 
 
+PROBES = ("attack", "attack-eps0.1", "attack-eps0.3", "swap", "regen")
+PROBE_MAP = "2s_vs_1sc"
+
+
+def probe_actions(name: str, obs: Any, masks: Any, feature: dict[str, int], unit_obs: int, rng: Any) -> Any:
+    """(N, 2) actions of probe ``name`` from the learner's joint observation and action masks (2s_vs_1sc: 2
+    stalkers, 7 actions: no-op, stop, north, south, east, west, attack the crawler; the crawler is north of the
+    spawns)."""
+    import numpy as np
+
+    n_battles = len(obs)
+    legal = masks.reshape(n_battles, 2, 7)
+    units = obs[:, :2 * unit_obs].reshape(n_battles, 2, unit_obs)
+
+    def column(key: str) -> Any:
+        return units[:, :, feature[key]]
+
+    actions = np.where(legal[:, :, 6], 6, np.where(legal[:, :, 2], 2, 0))  # attack, else north, else no-op
+    if name in ("swap", "regen"):
+        health, shield = column("own_health") * 80, column("own_shield") * 80
+        ally_health = column("ally_0_health") * 80
+        ally = ally_health + column("ally_0_shield") * 80
+        ally_alive = column("ally_0_visible") > 0
+        in_sight = column("enemy_0_distance") > 0  # the crawler within sight (9): SMAC zeroes its row beyond
+        run = (health + shield <= 25) & (ally >= 140) & in_sight
+        if name == "regen":
+            reserve = (health <= 45) & ((ally_health <= 45) | ~ally_alive)
+            run |= reserve & in_sight & (shield < 1)
+            wait = reserve & ~in_sight & (shield < 79)
+            actions = np.where(wait & legal[:, :, 1], 1, actions)
+        actions = np.where(run & legal[:, :, 3], 3, actions)
+    if name.startswith("attack-eps"):
+        flip = rng.random(actions.shape) < float(name.removeprefix("attack-eps"))
+        actions = np.where(flip, (rng.random(legal.shape) * legal).argmax(axis=2), actions)
+    return actions
+
+
+def probe(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Play each probe policy for ``--eval-episodes`` episodes of 2s_vs_1sc against "smac" on the test battles."""
+    import numpy as np
+
+    from smac_hard_gym.envs.vector import NativeVectorEnv
+    from smac_hard_gym.training import TEST_SEED_BASE
+
+    rows = []
+    gammas = (0.99, 0.999)
+    for name in PROBES:
+        env = NativeVectorEnv(PROBE_MAP, min(args.eval_envs, args.eval_episodes), autoreset_mode="SameStep",
+                              opponent="smac")
+        feats = env.core.features[0]
+        feature = {key: i for i, key in enumerate(feats.obs_feature_names())}
+        rng = np.random.default_rng(0)
+        n_battles = env.num_envs
+        crawler = feats.n_agents  # the crawler's unit slot follows the learner's
+        obs, _ = env.reset(seed=TEST_SEED_BASE)
+        ret, steps, switches = np.zeros(n_battles), np.zeros(n_battles, dtype=int), np.zeros(n_battles, dtype=int)
+        disc = {g: np.zeros(n_battles) for g in gammas}
+        target = env.core.state.target[:, crawler].copy()
+        done: list[dict[str, float]] = []
+        while len(done) < args.eval_episodes:
+            obs, reward, terminated, truncated, info = env.step(
+                probe_actions(name, obs, env.action_masks(), feature, feats.obs_size, rng))
+            both = (obs[:, :2 * feats.obs_size].reshape(n_battles, 2, -1)[:, :, feature["own_health"]] > 0).all(1)
+            for g in gammas:
+                disc[g] += reward * g ** steps
+            ret += reward
+            steps += 1
+            now = env.core.state.target[:, crawler]
+            switches += (now != target) & (now >= 0) & (target >= 0) & both  # both stalkers still alive
+            ended = terminated | truncated
+            for b in np.flatnonzero(ended):
+                done.append({"won": float(info["final_info"]["battle_won"][b]), "return": ret[b],
+                             "length": float(steps[b]), "switches": float(switches[b]),
+                             **{f"discounted_{g}": disc[g][b] for g in gammas}})
+            for array in (ret, steps, switches, *disc.values()):
+                array[ended] = 0
+            target = np.where(ended, -1, now)
+        env.close()
+        done = done[:args.eval_episodes]
+        row = {"map": PROBE_MAP, "probe": name, "episodes": len(done),
+               **{key: float(np.mean([d[key] for d in done])) for key in done[0]}}
+        rows.append(row)
+        print(f"{name}: win rate {row['won']:.3f}, return {row['return']:.2f}, length {row['length']:.1f}, "
+              f"crawler target switches {row['switches']:.2f}", flush=True)
+    return rows
+
+
+def probe_markdown(rows: list[dict[str, Any]]) -> str:
+    lines = ["| probe | episodes | win rate | return | discounted return (gamma 0.99) | (gamma 0.999) | "
+             "episode length | crawler target switches (both stalkers alive) |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['probe']} | {r['episodes']} | {r['won']:.2f} | {r['return']:.2f} | "
+                     f"{r['discounted_0.99']:.2f} | {r['discounted_0.999']:.2f} | {r['length']:.1f} | "
+                     f"{r['switches']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
 def markdown(rows: list[dict[str, Any]], speed_only: bool) -> str:
     if speed_only:
         lines = ["| map | variant | training steps/s (median) | rounds | parameters | speedup |",
@@ -187,6 +300,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--eval-envs", type=int, default=16)
     parser.add_argument("--speed", action="store_true", help="interleaved steps/s only, no evaluation")
     parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--probe", action="store_true",
+                        help="no training: scripted learner-side policies on 2s_vs_1sc vs smac (see the docstring)")
     parser.add_argument("--out", default="runs/shared_policy_study")
     args = parser.parse_args(argv)
     variants = args.variants.split(",")
@@ -202,13 +317,16 @@ def main(argv: list[str] | None = None) -> None:
     torch.set_num_threads(1)
     numba.set_num_threads(1)
     with distribution_checks_off():
-        rows = speed(args, variants) if args.speed else study(args, variants)
+        if args.probe:
+            rows = probe(args)
+        else:
+            rows = speed(args, variants) if args.speed else study(args, variants)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     meta = {"args": vars(args), "rows": rows}
-    name = "speed" if args.speed else "study"
+    name = "probe" if args.probe else "speed" if args.speed else "study"
     (out / f"{name}.json").write_text(json.dumps(meta, indent=1) + "\n")
-    table = markdown(rows, args.speed)
+    table = probe_markdown(rows) if args.probe else markdown(rows, args.speed)
     (out / f"{name}.md").write_text(table)
     print(table)
 
