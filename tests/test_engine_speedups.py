@@ -162,6 +162,54 @@ def test_parallel_step_equals_serial_step_and_skips_inactive_battles(monkeypatch
 
 
 
+def test_a_callers_commands_step_exactly_as_the_engines_own_buffer():
+    rng = np.random.default_rng(8)
+    own, users = BattleEngine("MMM", batch_size=3), BattleEngine("MMM", batch_size=3)
+    for step in range(60):
+        cmd = _random_commands(own, rng)
+        active = rng.random(3) < 0.9
+        for name in Commands._fields:
+            getattr(own.commands, name)[:] = getattr(cmd, name)
+        own.step(None, active.copy())
+        users.step(Commands(*(a.copy() for a in cmd)), active.copy())
+        for name, a, b in zip(BattleState._fields, own.state, users.state, strict=True):
+            assert np.array_equal(a, b), (step, name)
+    assert (~own.state.alive).any()  # the comparison covered deaths
+
+
+def test_only_plain_commands_and_active_skip_numbas_dispatcher():
+    # After its first serial step the engine calls the compiled step directly, which trusts its arguments' types:
+    # commands and ``active`` of any other array type (another dtype, Fortran order, read-only) must go
+    # through the dispatcher, which types them (and compiles for them).
+    engine = BattleEngine("3m", batch_size=2)
+    engine.step()
+    calls = []
+    engine._direct_serial = lambda *args: calls.append("direct")
+    engine._step_battles = lambda *args: calls.append("dispatcher")
+
+    def user(**changes: np.ndarray) -> Commands:
+        return Commands(*(changes.get(name, getattr(engine.commands, name).copy()) for name in Commands._fields))
+
+    read_only = engine.commands.x.copy()
+    read_only.flags.writeable = False
+    active = np.ones(4, dtype=bool)
+    frozen = np.ones(2, dtype=bool)
+    frozen.flags.writeable = False
+    cases = {
+        "own buffer": (None, None, "direct"),
+        "caller's plain arrays": (user(), np.ones(2, dtype=bool), "direct"),
+        "int64 kinds": (user(kind=engine.commands.kind.astype(np.int64)), None, "dispatcher"),
+        "Fortran-order targets": (user(target=np.asfortranarray(engine.commands.target)), None, "dispatcher"),
+        "read-only x": (user(x=read_only), None, "dispatcher"),
+        "strided active (the engine copies it)": (None, active[::2], "direct"),
+        "read-only active": (None, frozen, "dispatcher"),
+    }
+    for name, (cmd, act, path) in cases.items():
+        calls.clear()
+        engine.step(cmd, act)
+        assert calls == [path], name
+
+
 def test_kernels_compiled_for_the_unit_count_step_exactly_as_the_generic_ones():
     # MMM: medivac heals, marauder bonus damage, deaths within 40 random steps; 20 units per battle.
     batch = 40

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
 
 from smac_hard_gym.engine.batch_ops import count_alive, reset_battles
-from smac_hard_gym.engine.direct import compiled_entry
+from smac_hard_gym.engine.direct import compiled_entry, is_plain
 from smac_hard_gym.engine.kernels import GENERIC, step_batch, step_battles, step_kernels_for
 from smac_hard_gym.engine.scenario import Layout, build_layout
 from smac_hard_gym.engine.state import BattleState, Commands, Scratch, allocate_state
@@ -23,6 +25,13 @@ SPECIALIZE_MIN_BATCH = 1024
 # same range): -1 to +2 game loops.
 SC2_COOLDOWN_JITTER = (-1.0, 2.0)
 _MASK64 = (1 << 64) - 1
+_BOOL, _INT8, _INT32, _FLOAT64 = (np.dtype(t) for t in (np.bool_, np.int8, np.int32, np.float64))
+
+
+def _plain_commands(cmd: Commands) -> bool:
+    """Commands of the one type the direct serial step compiles for: plain (B, U) int8, int32, float64, float64."""
+    return (is_plain(cmd.kind, _INT8, 2) and is_plain(cmd.target, _INT32, 2) and is_plain(cmd.x, _FLOAT64, 2)
+            and is_plain(cmd.y, _FLOAT64, 2))
 
 
 def _splitmix64(value: int) -> int:
@@ -71,14 +80,18 @@ class BattleEngine:
         self._scratch = Scratch.empty(self.batch_size, self.n_units)  # the kernels' working arrays
         self._next_battle = np.zeros(1, dtype=np.int64)  # the parallel kernel's shared work counter
         self.commands = Commands.empty(self.batch_size, self.n_units)
+        self._own_commands = self.commands  # plain by construction, whatever is later assigned to ``commands``
         self._all_active = np.ones(self.batch_size, dtype=np.bool_)
         if specialize is None:
             specialize = self.batch_size >= SPECIALIZE_MIN_BATCH
         self.specialized = specialize
         self._step_batch, self._step_battles, self._units = (step_kernels_for(self.n_units) if specialize
                                                              else (step_batch, step_battles, GENERIC))
-        self._direct_commands: Commands | None = None  # see _take_direct_serial
-        self._direct_serial = self._step_battles
+        # numba's dispatcher types every argument on every call, each array of the state's 25 included: about 6 us a
+        # step, as long as 3m's eight game loops at B=1. Every argument is this engine's own except the commands and
+        # ``active``: once a serial step has compiled, steps whose commands and ``active`` are plain arrays of the
+        # engine's dtypes call the overload the dispatcher chose for them directly.
+        self._direct_serial: Any = None
         lo, hi = (0.0, 0.0) if cooldown_jitter is None else (float(cooldown_jitter[0]), float(cooldown_jitter[1]))
         if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi and lo > -8):
             raise ValueError(f"cooldown_jitter must be (low, high) game loops with -8 < low <= high, or None; "
@@ -134,25 +147,13 @@ class BattleEngine:
         threads = numba.get_num_threads() if self.batch_size >= PARALLEL_MIN_BATCH else 1
         if threads > 1:
             self._step_batch(*args[:-1], threads, self._next_battle, self._units)
-        elif cmd is self._direct_commands and act.ndim == 1:
+        elif self._direct_serial is not None and (cmd is self._own_commands or _plain_commands(cmd)) and \
+                (act is self._all_active or is_plain(act, _BOOL, 1)):
             self._direct_serial(0, self.batch_size, *args)
         else:
             self._step_battles(0, self.batch_size, *args)
-            self._take_direct_serial(cmd, (0, self.batch_size, *args))
-
-    def _take_direct_serial(self, cmd: Commands, args: tuple) -> None:
-        """Call the compiled serial kernel directly from now on when stepping with the command buffer ``cmd``.
-
-        numba's dispatcher types every argument on every call, each array of the state's 25 included: about 6 us a
-        step, as long as 3m's eight game loops at B=1. Every argument is one of this engine's own except the commands
-        and ``active`` (a contiguous bool vector, checked per call); once ``cmd``'s arrays have been typed here, its
-        steps skip the dispatcher. The overload is the one the dispatcher itself chose for these types.
-        """
-        if self._direct_commands is not None:
-            return
-        entry = compiled_entry(self._step_battles, args)
-        if entry is not None:
-            self._direct_commands, self._direct_serial = cmd, entry
+            if self._direct_serial is None and _plain_commands(cmd) and is_plain(act, _BOOL, 1):
+                self._direct_serial = compiled_entry(self._step_battles, (0, self.batch_size, *args))
 
     def alive_counts(self) -> tuple[np.ndarray, np.ndarray]:
         """Alive units per battle: (red, blue), each shaped (B,)."""

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["compiled_entry"]
+import numpy as np
+
+__all__ = ["compiled_entry", "is_plain", "DirectKernel"]
 
 
 def compiled_entry(kernel: Any, args: tuple) -> Any:
@@ -21,3 +23,33 @@ def compiled_entry(kernel: Any, args: tuple) -> Any:
         return None
     compiled = overloads.get(tuple(kernel.typeof_pyval(a) for a in args))
     return None if compiled is None else compiled.entry_point
+
+
+def is_plain(array: object, dtype: np.dtype, ndim: int) -> bool:
+    """A writable, aligned, C-contiguous ``dtype`` array of ``ndim`` dimensions: the one array type a direct call
+    site compiles for (what the engine and the env layers allocate, and what action validation returns)."""
+    if type(array) is not np.ndarray or array.dtype is not dtype or array.ndim != ndim:
+        return False
+    flags = array.flags
+    return flags.c_contiguous and flags.writeable and flags.aligned
+
+
+class DirectKernel:
+    """A kernel called past numba's dispatcher (:func:`compiled_entry`) once a ``plain`` call has compiled it.
+
+    The dispatcher types every argument on every call, and typing the bundles (a few dozen fields) costs more than
+    encoding a few battles. A call site passes ``plain=True`` only when every argument has the types of its first
+    plain call: its own bundles, and arrays checked with :func:`is_plain`; other calls go through the dispatcher.
+    """
+
+    def __init__(self, kernel: object) -> None:
+        self.kernel = kernel
+        self.entry: object = None
+
+    def __call__(self, plain: bool, *args: object) -> object:
+        if plain and self.entry is not None:
+            return self.entry(*args)
+        result = self.kernel(*args)
+        if plain:
+            self.entry = compiled_entry(self.kernel, args)
+        return result

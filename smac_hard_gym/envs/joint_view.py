@@ -19,6 +19,7 @@ from smac_hard_gym.smac.features import RED_WON, SideFeatures
 __all__ = ["JointView", "Transition", "OBS_MODES", "OBS_LOW"]
 
 OBS_MODES = ("joint", "joint+state", "dict")
+_ONE_BYTE = frozenset((bool, np.bool_, np.int8, np.uint8))  # mask dtypes that share bool's layout
 OBS_LOW = -1.0  # SMAC features are ratios in [-1, 1] (offsets / sight range, health / max, one-hots); see state_high
 
 
@@ -87,7 +88,7 @@ class JointView:
         """Fresh ``(B, n_agents * n_actions)`` array of an encoding's masks, agent-major (bool, or ``dtype``)."""
         masks = avail.reshape(-1, self.mask_size)
         # bool and int8 share a layout: a plain copy is several times faster than a conversion.
-        return masks.view(dtype).copy() if np.dtype(dtype).itemsize == 1 else masks.astype(dtype)
+        return masks.view(dtype).copy() if dtype in _ONE_BYTE else masks.astype(dtype)
 
     def translate(self, result: Any) -> Transition:
         """A core :class:`~smac_hard_gym.envs.core.StepResult` as gymnasium's step values, per battle.

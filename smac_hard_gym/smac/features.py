@@ -36,6 +36,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from smac_hard_gym.engine.direct import DirectKernel, is_plain
 from smac_hard_gym.engine.state import BLUE, RED, BattleState
 from smac_hard_gym.engine.terrain import cliff_height
 from smac_hard_gym.engine.units import STATS, UNITS, WEAPON_HEAL, S, unit_index
@@ -297,8 +298,8 @@ class SideFeatures:
         self._units: tuple[BattleState | None, fk.UnitArrays | None, bool] = (None, None, False)  # the last state's
         # The kernels called on every step of some APIs (blue's encoding in self-play, a policy opponent's), past
         # numba's dispatcher once compiled for plain arrays.
-        self._encode_batch = fk.DirectKernel(fk.encode_batch)
-        self._available_actions_batch = fk.DirectKernel(fk.available_actions_batch)
+        self._encode_batch = DirectKernel(fk.encode_batch)
+        self._available_actions_batch = DirectKernel(fk.available_actions_batch)
 
         # The kernels' inputs: this side's constants, and every column from the name lists above.
         self.constants = fk.SideConstants(
@@ -415,8 +416,8 @@ class SideFeatures:
         rows = self.all_rows(state) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
         out = self.outputs(len(rows), with_state=True)  # plain, as every output allocated here
         units, plain = self.kernel_units(state)
-        plain = (plain and fk.is_plain(rows, _INT64, 1) and fk.is_plain(last_action, _INT64, 2)
-                 and fk.is_plain(episode_step, _INT64, 1))
+        plain = (plain and is_plain(rows, _INT64, 1) and is_plain(last_action, _INT64, 2)
+                 and is_plain(episode_step, _INT64, 1))
         self._encode_batch(plain, rows, units, last_action, episode_step, out, self.constants,
                            self.columns)
         return out.avail, out.obs, self.finish_state(out.obs, out.state)
@@ -429,7 +430,7 @@ class SideFeatures:
         if out is None:
             out = np.empty((len(rows), self.n_agents, self.n_actions), dtype=bool)
         units, plain = self.kernel_units(state)
-        plain = plain and fk.is_plain(rows, _INT64, 1) and fk.is_plain(out, _BOOL, 3)
+        plain = plain and is_plain(rows, _INT64, 1) and is_plain(out, _BOOL, 3)
         self._available_actions_batch(plain, rows, units, out, self.constants.actions)
         return out
 
@@ -439,7 +440,8 @@ class SideFeatures:
         avail = np.empty((batch, self.n_agents, self.n_actions), dtype=bool)
         obs = np.empty((batch, self.n_agents, self.obs_size), dtype=np.float32)
         rows = batch if with_state and not self.options.obs_instead_of_state else 0
-        return fk.Encoding(avail, obs, np.empty((rows, self.state_size), dtype=np.float32))
+        # tuple.__new__: the NamedTuple without its Python-level constructor, once per step (see envs.core)
+        return tuple.__new__(fk.Encoding, (avail, obs, np.empty((rows, self.state_size), dtype=np.float32)))
 
     def kernel_units(self, state: BattleState) -> tuple[fk.UnitArrays, bool]:
         """The kernels' view of ``state``, and whether its arrays are of the one type direct kernel calls compile

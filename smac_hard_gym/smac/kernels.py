@@ -25,14 +25,14 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from smac_hard_gym.engine.direct import compiled_entry
+from smac_hard_gym.engine.direct import is_plain
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP, CMD_STOP, NO_UNIT, BattleState
 
 __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
     "UnitArrays", "ActionConstants", "SideConstants", "Columns", "Encoding", "StepInputs", "Counters", "StepOutcome",
     "RewardOptions", "StepRules",
-    "is_plain", "DirectKernel", "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
+    "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
     "finish_encode", "first_invalid_action", "check_decode_batch",
 ]
 
@@ -271,40 +271,7 @@ class StepRules(NamedTuple):
     divisor: np.ndarray
 
 
-# ---------------------------------------------------------------------------------------------------------------
-# Calling the kernels past numba's dispatcher.
-
-_BOOL, _INT64, _FLOAT64 = np.dtype(np.bool_), np.dtype(np.int64), np.dtype(np.float64)
-
-
-def is_plain(array: object, dtype: np.dtype, ndim: int) -> bool:
-    """A writable, aligned, C-contiguous ``dtype`` array of ``ndim`` dimensions: the one type a
-    :class:`DirectKernel` call site compiles for (what the env layers allocate and action validation returns)."""
-    if type(array) is not np.ndarray or array.dtype is not dtype or array.ndim != ndim:
-        return False
-    flags = array.flags
-    return flags.c_contiguous and flags.writeable and flags.aligned
-
-
-class DirectKernel:
-    """A kernel called past numba's dispatcher (``compiled_entry``) once a ``plain`` call has compiled it.
-
-    The dispatcher types every argument on every call, and typing the bundles (a few dozen fields) costs more than
-    encoding a few battles. A call site passes ``plain=True`` only when every argument has the types of its first
-    plain call: its own bundles, and arrays checked with :func:`is_plain`; other calls go through the dispatcher.
-    """
-
-    def __init__(self, kernel: object) -> None:
-        self.kernel = kernel
-        self.entry: object = None
-
-    def __call__(self, plain: bool, *args: object) -> object:
-        if plain and self.entry is not None:
-            return self.entry(*args)
-        result = self.kernel(*args)
-        if plain:
-            self.entry = compiled_entry(self.kernel, args)
-        return result
+_BOOL, _FLOAT64 = np.dtype(np.bool_), np.dtype(np.float64)
 
 
 @inline

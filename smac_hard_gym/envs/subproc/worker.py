@@ -30,11 +30,11 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
 
+from smac_hard_gym.engine.direct import is_plain
 from smac_hard_gym.envs.autoreset import AUTORESET_NAMES
 from smac_hard_gym.envs.subproc.safe_pickle import safe_loads
 from smac_hard_gym.envs.subproc.shared_memory import SharedBlock, write_masks, write_obs
 from smac_hard_gym.lifetime import die_with_parent
-from smac_hard_gym.smac.kernels import is_plain
 
 __all__ = ["BatchWorker", "Server", "worker_main", "pack_error", "unpack_error", "limit_threads"]
 
