@@ -31,9 +31,11 @@ def count_alive(alive, n_red):
 
 
 @njit(cache=True)
-def reset_battles(st, battles, utype, side, x, y, health, shield, energy):
-    """Put the listed battles back at the spawn layout (per-slot ``utype`` ... ``energy``): alive, idle, no targets,
-    weapons and shields ready, loop 0. The random streams are left alone."""
+def reset_battles(st, battles, layout):
+    """Put the listed battles back at the spawn ``layout`` (:class:`~smac_hard_gym.engine.scenario.Layout`): alive,
+    idle, no targets, weapons and shields ready, loop 0. The random streams are left alone."""
+    utype, side, x, y = layout.utype, layout.side, layout.x, layout.y
+    health, shield, energy = layout.health, layout.shield, layout.energy
     for b in battles:
         st.loop[b] = 0
         for i in range(utype.shape[0]):

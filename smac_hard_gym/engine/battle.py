@@ -130,7 +130,7 @@ class BattleEngine:
             if seeds.shape != rows.shape:
                 raise ValueError(f"seeds must give one int per reset battle ({len(rows)}), got shape {seeds.shape}")
             st.rng[rows] = [_splitmix64(int(s)) for s in seeds]
-        reset_battles(st, rows, lay.utype, lay.side, lay.x, lay.y, lay.health, lay.shield, lay.energy)
+        reset_battles(st, rows, lay)
 
     def step(self, commands: Commands | None = None, active: np.ndarray | None = None,
              n_loops: int | None = None) -> None:

@@ -983,7 +983,9 @@ def step_batch(st, cmd, slot_stats, terrain, n_loops, active, jitter, scratch, w
     ``next_battle`` (an int64 array of one element, the shared counter) until all are taken (see ``scheduling``).
     Each chunk is one call of the compiled ``step_battles``: inlining the battle here instead made numba's parfor
     passes take 87 s to compile this kernel on 2 cores, against 4 s (and the unit-count overloads, which inlined it
-    until they took the count as a tuple type, stepped no faster for it).
+    until they took the count as a tuple type, stepped no faster for it). The map's constants stay apart
+    (``slot_stats``, ``terrain``, ``jitter``): numba's parfor cannot hand a prange body a tuple nested in a tuple (a
+    Setup bundle holding the Terrain failed to lower here, and so did building it inside the body).
     """
     n_battles = st.alive.shape[0]
     chunk = max(1, n_battles // (workers * CHUNKS_PER_THREAD))
