@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os as _os
 
-# The engine's threading layer (see smac_hard_gym/engine/__init__.py); set before numba is imported anywhere.
+# The engine's threading layer (see smac_hard_gym/engine/kernels.py); set before numba is imported anywhere.
 _os.environ.setdefault("NUMBA_THREADING_LAYER", "workqueue")
 
 ENTRY_POINT = "smac_hard_gym.envs.gym_env:SMACHardEnv"
