@@ -40,8 +40,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--batch-size", type=int, default=512)
     parser.add_argument("--epochs", type=int, default=10, help="PPO epochs per update (default 10)")
     parser.add_argument("--lr", type=float, default=5e-4, help="learning rate (default 5e-4)")
-    parser.add_argument("--ent-coef", type=float, default=0.01)
+    parser.add_argument("--ent-coef", type=float, default=0.01, help="entropy coefficient (default 0.01)")
+    parser.add_argument("--ent-coef-final", type=float, default=None, metavar="COEF",
+                        help="let the entropy coefficient fall linearly from --ent-coef at the first update to COEF "
+                             "at the last (default: --ent-coef throughout)")
     parser.add_argument("--gamma", type=float, default=0.99)
+    parser.add_argument("--reward", default="positive", choices=("positive", "signed"),
+                        help="the training battles' reward: positive (SMAC's default: damage dealt and kills) or "
+                             "signed (SMAC's reward_only_positive=False: damage taken and deaths count against, "
+                             "regenerated shields for, at half weight); test evaluations use SMAC's default")
     parser.add_argument("--net-arch", default="128,128", help="hidden layer sizes (default 128,128)")
     parser.add_argument("--torch-threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--env-threads", type=int, default=1, help="engine (numba) threads (default 1)")
@@ -79,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
             seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
             obs_mode=args.obs_mode or ("joint+state" if args.policy == "shared" else "joint"),
             policy=args.policy, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.epochs,
-            learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, net_arch=net_arch,
+            learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, ent_coef_final=args.ent_coef_final,
+            reward=args.reward, net_arch=net_arch,
             torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
             tensorboard=args.tensorboard, league=args.league, league_every=args.league_every,
             league_weighting=args.league_weighting, ray=args.ray is not None,

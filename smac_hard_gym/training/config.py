@@ -11,9 +11,13 @@ import numpy as np
 
 from smac_hard_gym.training.protocol import TEST_SEED_BASE
 
-__all__ = ["TrainConfig", "POLICIES"]
+__all__ = ["TrainConfig", "POLICIES", "REWARDS"]
 
 POLICIES = ("joint", "shared")  # train --policy
+# train --reward: SMAC's reward as the training battles give it. "positive": SMAC's default (reward_only_positive:
+# damage dealt and kills only); "signed": reward_only_positive=False (damage taken, deaths and regenerated shields
+# count too, at reward_negative_scale 0.5). Test evaluations keep SMAC's default, so test returns compare across runs.
+REWARDS = ("positive", "signed")
 
 
 @dataclass
@@ -39,6 +43,10 @@ class TrainConfig:
     gae_lambda: float = 0.95
     clip_range: float = 0.2
     ent_coef: float = 0.01
+    # None: ent_coef throughout; a float: the entropy coefficient falls linearly from ent_coef at step 0 to this at
+    # the last step (set before each update)
+    ent_coef_final: float | None = None
+    reward: str = "positive"  # the training battles' reward (REWARDS); evaluations use SMAC's default
     net_arch: list[int] = field(default_factory=lambda: [128, 128])
     torch_threads: int = 1
     env_threads: int = 1  # numba threads for the engine batch
@@ -65,6 +73,15 @@ class TrainConfig:
             raise ValueError(f"eval_every must be >= 0 (0: a tenth of the run), got {self.eval_every!r}")
         if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
             raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
+        for name in ("ent_coef", "ent_coef_final"):
+            value = getattr(self, name)
+            if value is None and name == "ent_coef_final":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not np.isfinite(value) or value < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.reward not in REWARDS:
+            raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.policy == "shared" and self.obs_mode == "dict":
@@ -107,9 +124,23 @@ class TrainConfig:
     def league_interval(self) -> int:
         return self.league_every or max(self.timesteps // 5, self.num_envs * self.n_steps)
 
+    def ent_coef_at(self, timesteps: int) -> float:
+        """The entropy coefficient of the update made after ``timesteps`` env steps (see ``ent_coef_final``)."""
+        if self.ent_coef_final is None:
+            return float(self.ent_coef)
+        done = min(max(timesteps / self.timesteps, 0.0), 1.0)
+        return float(self.ent_coef + (self.ent_coef_final - self.ent_coef) * done)
+
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of the envs this run trains and evaluates on."""
         return {"map_name": self.map_name, "obs_mode": self.obs_mode}
+
+    def train_env_kwargs(self) -> dict[str, Any]:
+        """:meth:`env_kwargs` plus the training battles' reward options (evaluations use :meth:`env_kwargs`)."""
+        kwargs = self.env_kwargs()
+        if self.reward == "signed":
+            kwargs["reward_only_positive"] = False
+        return kwargs
 
     def ppo_kwargs(self) -> dict[str, Any]:
         """MaskablePPO's keyword arguments for this run's PPO settings (policy, env and buffer apart). The shared

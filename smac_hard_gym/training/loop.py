@@ -55,19 +55,21 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     write_json(out / "config.json", asdict(config))
 
     opponent = opponent_from_text(config.opponent)
-    kwargs = config.env_kwargs()
+    kwargs = config.env_kwargs()  # the evaluation battles': SMAC's default reward whatever config.reward says
+    train_kwargs = config.train_env_kwargs()
     map_name = kwargs.pop("map_name")
+    train_kwargs.pop("map_name")
     league = make_league(map_name, opponent, config.league_weighting) if config.league else None
     if config.ray:
         from smac_hard_gym.wrappers.ray_vec import make_ray_vec
 
         native = make_ray_vec(map_name, config.ray_actors, config.num_envs // config.ray_actors,
                               autoreset_mode="SameStep", address=config.ray_address, worker_threads=config.env_threads,
-                              opponent=opponent, **kwargs)
+                              opponent=opponent, **train_kwargs)
         log(f"training battles on Ray: {native!r}")
     else:
         native = NativeVectorEnv(map_name, config.num_envs, autoreset_mode="SameStep",
-                                 opponent=opponent if league is None else league, **kwargs)
+                                 opponent=opponent if league is None else league, **train_kwargs)
     timed = timed_vec_env_class()(SB3VecEnv(native))
     venv = VecMonitor(timed)
     eval_env = NativeVectorEnv(map_name, min(config.eval_envs, config.eval_episodes), autoreset_mode="SameStep",
@@ -110,10 +112,15 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
 
     progress: Any = eval_callback_class()(evaluate_now, config.eval_interval, config.timesteps, config.progress)
     callback: Any = progress
+    callbacks = [progress]
     if league is not None:
+        callbacks.append(league_callback_class()(league, native.core, config.league_interval))
+    if config.ent_coef_final is not None:
+        callbacks.append(_entropy_schedule(config))
+    if len(callbacks) > 1:
         from stable_baselines3.common.callbacks import CallbackList
 
-        callback = CallbackList([progress, league_callback_class()(league, native.core, config.league_interval)])
+        callback = CallbackList(callbacks)
     evaluate_now(0)
     clock["start"] = time.perf_counter()
     clock["eval"] = 0.0
@@ -151,3 +158,18 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
             "(the battles `smac-hard-gym eval` plays by default), training battles seeded "
             f"{config.seed}..{config.seed + config.num_envs - 1}")
     return summary
+
+
+def _entropy_schedule(config: TrainConfig) -> Any:
+    """A stable-baselines3 callback that sets the model's ``ent_coef`` to ``config.ent_coef_at(steps so far)`` after
+    each rollout, before the update that uses it (``--ent-coef-final``)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class EntropySchedule(BaseCallback):
+        def _on_rollout_end(self) -> None:
+            self.model.ent_coef = config.ent_coef_at(self.model.num_timesteps)
+
+        def _on_step(self) -> bool:
+            return True
+
+    return EntropySchedule()
