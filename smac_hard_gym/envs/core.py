@@ -355,9 +355,9 @@ class TwoPlayerCore:
         n_ended = self._finish_encode(
             plain and is_plain(red, _INT64, 2) and (blue is self._no_actions or is_plain(blue, _INT64, 2)),
             units,
-            _bundle(StepInputs, (prev_hs, prev_alive, active, restarted, red, blue)), self._counters,
-            _bundle(StepOutcome, (outcome, reward, terminated, truncated, dead_red, dead_blue)), out, feats.constants,
-            feats.columns, self._rules)
+            _bundle(StepInputs, (prev_hs, prev_alive, active, restarted, red, blue, feats.all_rows(state))),
+            self._counters, _bundle(StepOutcome, (outcome, reward, terminated, truncated, dead_red, dead_blue)), out,
+            feats.constants, feats.columns, self._rules)
         global_state = feats.finish_state(obs, out.state) if self.encode_state else None
         self._encoded[RED] = (avail, obs, global_state)
         if n_ended:
