@@ -199,6 +199,9 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
                  state_size: int = 0, last_action_offset: int | None = None, unit_ids: bool = True,
                  last_action: bool = True, critic: str | None = None, value_norm: str = "running",
                  value_norm_beta: float = 0.99999, **kwargs: Any) -> None:
+        """SB3's policy constructor (spaces, schedule, ``net_arch``, activation and its own keywords passed through),
+        then this policy's options by keyword: SB3 saves a policy's constructor keywords with ``model.zip`` and
+        rebuilds it from them (``policy_kwargs``), so each option is a flat keyword, hence the long list."""
         if not isinstance(action_space, spaces.MultiDiscrete) or len(set(action_space.nvec.tolist())) != 1:
             raise ValueError(f"SharedUnitPolicy needs a MultiDiscrete action of equal sub-actions, got {action_space}")
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
