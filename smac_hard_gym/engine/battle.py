@@ -147,13 +147,15 @@ class BattleEngine:
         threads = numba.get_num_threads() if self.batch_size >= PARALLEL_MIN_BATCH else 1
         if threads > 1:
             self._step_batch(*args[:-1], threads, self._next_battle, self._units)
-        elif self._direct_serial is not None and (cmd is self._own_commands or _plain_commands(cmd)) and \
-                (act is self._all_active or is_plain(act, _BOOL, 1)):
+            return
+        plain = ((cmd is self._own_commands or _plain_commands(cmd))
+                 and (act is self._all_active or is_plain(act, _BOOL, 1)))
+        if plain and self._direct_serial is not None:
             self._direct_serial(0, self.batch_size, *args)
-        else:
-            self._step_battles(0, self.batch_size, *args)
-            if self._direct_serial is None and _plain_commands(cmd) and is_plain(act, _BOOL, 1):
-                self._direct_serial = compiled_entry(self._step_battles, (0, self.batch_size, *args))
+            return
+        self._step_battles(0, self.batch_size, *args)
+        if plain:
+            self._direct_serial = compiled_entry(self._step_battles, (0, self.batch_size, *args))
 
     def alive_counts(self) -> tuple[np.ndarray, np.ndarray]:
         """Alive units per battle: (red, blue), each shaped (B,)."""

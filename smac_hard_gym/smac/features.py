@@ -440,8 +440,7 @@ class SideFeatures:
         avail = np.empty((batch, self.n_agents, self.n_actions), dtype=bool)
         obs = np.empty((batch, self.n_agents, self.obs_size), dtype=np.float32)
         rows = batch if with_state and not self.options.obs_instead_of_state else 0
-        # tuple.__new__: the NamedTuple without its Python-level constructor, once per step (see envs.core)
-        return tuple.__new__(fk.Encoding, (avail, obs, np.empty((rows, self.state_size), dtype=np.float32)))
+        return fk.make_bundle(fk.Encoding, (avail, obs, np.empty((rows, self.state_size), dtype=np.float32)))
 
     def kernel_units(self, state: BattleState) -> tuple[fk.UnitArrays, bool]:
         """The kernels' view of ``state``, and whether its arrays are of the one type direct kernel calls compile

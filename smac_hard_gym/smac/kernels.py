@@ -31,7 +31,7 @@ from smac_hard_gym.engine.state import CMD_ATTACK, CMD_HEAL, CMD_MOVE, CMD_NOOP,
 __all__ = [
     "SHOOT_RANGE", "SIGHT_RANGE", "N_ACTIONS_NO_ATTACK", "RUNNING", "RED_WON", "BLUE_WON", "DRAW",
     "UnitArrays", "ActionConstants", "SideConstants", "Columns", "Encoding", "StepInputs", "Counters", "StepOutcome",
-    "RewardOptions", "StepRules",
+    "RewardOptions", "StepRules", "make_bundle",
     "available_actions_batch", "observations_batch", "global_state_batch", "encode_batch",
     "finish_encode", "first_invalid_action", "check_decode_batch",
 ]
@@ -209,6 +209,11 @@ class Encoding(NamedTuple):
     avail: np.ndarray
     obs: np.ndarray
     state: np.ndarray
+
+
+# Builds a per-step bundle from a tuple of its fields as NamedTuple.__new__ would, without that constructor's
+# Python-level frame (about 0.25 us each, four per core step: a measurable share of a one-battle step).
+make_bundle = tuple.__new__
 
 
 class StepInputs(NamedTuple):
