@@ -113,3 +113,19 @@ def test_smac_import_door_runs_episodes():
                          env={**os.environ, "PYTHONPATH": str(RECIPE / "smac_shim")})
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["ok", "3"]
+
+
+def test_the_smac_door_pays_smacs_reward_unless_told_otherwise():
+    """SMAC (and pymarl2's copy of it) pays abs(damage + kills), so enemy regeneration earns reward
+    (tests/test_rewards.py works it by hand). The shim stands in for SMAC, so it defaults to that; an explicit
+    reward_abs=False still wins."""
+    code = textwrap.dedent("""
+        from smac.env import StarCraft2Env
+        for kwargs in ({}, {"reward_abs": False}):
+            env = StarCraft2Env(map_name="3s_vs_3z", **kwargs)
+            print(env._core.rewards.options.reward_abs)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "PYTHONPATH": str(RECIPE / "smac_shim")})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True", "False"]

@@ -116,6 +116,31 @@ def test_regeneration_pays_nothing_with_only_positive():
     assert red == pytest.approx(-2.0)
 
 
+def test_reward_abs_pays_enemy_regeneration_as_smac_v1_does():
+    # SMAC v1 (and pymarl2's copy): r = abs(delta_enemy + delta_deaths), "# shield regeneration".
+    snap = Snapshots("3s_vs_3z", reward_scale=False, reward_abs=True)
+    red, _ = snap.step(u3=(100.0, 40.0))  # a zealot loses 10 shields
+    assert red == pytest.approx(10.0)
+    red, _ = snap.step(u3=(100.0, 42.0))  # it regenerates 2: paid like 2 damage
+    assert red == pytest.approx(2.0)
+    red, _ = snap.step(u3=(100.0, 39.0), u4=(99.0, 50.0))  # 3 shields and 1 health lost at once: 4
+    assert red == pytest.approx(4.0)
+    red, _ = snap.step(u3=(100.0, 40.0), u4=(98.0, 50.0))  # +1 regenerated and -1 dealt cancel
+    assert red == 0.0
+    # the medivac's healing on MMM: an enemy marine healed by 9 pays 9, scaled by MMM's divisor
+    snap = Snapshots("MMM", reward_abs=True)
+    spec = snap.core.spec
+    marine = spec.n_red + spec.blue_unit_names.index("Marine")  # blue's slots follow red's
+    snap.step(**{f"u{marine}": 30.0})
+    red, _ = snap.step(**{f"u{marine}": 39.0})
+    assert red == pytest.approx(9.0 / (snap.reward.max_reward[RED] / 20.0))
+
+
+def test_reward_abs_is_validated():
+    with pytest.raises(TypeError, match="reward_abs"):
+        SmacOptions(reward_abs="yes")
+
+
 def test_terminal_bonuses_draws_and_sparse_rewards():
     every_red = {"u0": 0.0, "u1": 0.0, "u2": 0.0}
     every_blue = {"u3": 0.0, "u4": 0.0, "u5": 0.0}

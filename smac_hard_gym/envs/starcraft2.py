@@ -56,6 +56,9 @@ class StarCraft2Env:
           list of scripts.
           ``strategy_prob`` (SMAC-HARD) gives weights over the map's default pool (``opponent="default"``).
         - ``backend``: ``"native"`` (embedded engine) or ``"sc2"``; ``backend_options``: passed to it.
+        - ``reward_abs``: with ``reward_only_positive``, pay ``abs(damage + kills)`` as SMAC v1 does (enemy shield
+          and health regeneration and healing then earn reward) instead of SMAC-HARD's ``max(0, .)`` (default).
+          SMAC, pymarl2 and the SMAC-HARD paper's runs used ``abs``.
 
     Return values
         SMAC's: ``reset() -> (obs_list, state)``, ``step(actions) -> (reward, terminated, info)`` with ``info``
@@ -109,6 +112,7 @@ class StarCraft2Env:
         backend: str = "native",
         backend_options: dict | None = None,
         opponent_isolation: str | None = None,
+        reward_abs: bool = False,
     ) -> None:
         """Every keyword of SMAC's own ``StarCraft2Env`` constructor, in its order, so that code written for SMAC
         runs unchanged (hence the long list), then smac-hard-gym's own (``mode`` onwards)."""
@@ -143,7 +147,7 @@ class StarCraft2Env:
             reward_sparse=reward_sparse, reward_only_positive=reward_only_positive,
             reward_death_value=reward_death_value, reward_win=reward_win, reward_defeat=reward_defeat,
             reward_negative_scale=reward_negative_scale, reward_scale=reward_scale,
-            reward_scale_rate=reward_scale_rate, move_amount=move_amount,
+            reward_scale_rate=reward_scale_rate, move_amount=move_amount, reward_abs=reward_abs,
         )
         if self.mode == "self-play" and (opponent != "smac" or opponent_probs is not None):
             raise ValueError("mode 'self-play' has no opponent script; drop opponent= / opponent_probs=")

@@ -97,6 +97,7 @@ class SmacOptions:
     state_timestep_number: bool = False
     reward_sparse: bool = False
     reward_only_positive: bool = True
+    reward_abs: bool = False  # with reward_only_positive: SMAC v1's |dmg + kills| (pays enemy regeneration)
     reward_death_value: float = 10.0
     reward_win: float = 200.0
     reward_defeat: float = 0.0
@@ -490,7 +491,8 @@ class RewardFunction:
 
     Each side is credited its own kills and damage (separate death bookkeeping per side, unlike SMAC-HARD's shared
     tracker that gives blue nothing). With ``reward_only_positive`` a step's reward is ``max(0, damage + kills)``
-    (SMAC-HARD's fix; SMAC takes ``abs``, which pays for enemy regeneration).
+    (SMAC-HARD's fix), or with ``reward_abs`` SMAC v1's ``abs(damage + kills)``, which pays for enemy shield and
+    health regeneration and healing as for damage (what SMAC, pymarl2 and the SMAC-HARD paper's runs used).
     """
 
     def __init__(self, red: SideFeatures, blue: SideFeatures, options: SmacOptions) -> None:
@@ -510,5 +512,6 @@ class RewardFunction:
             reward=fk.RewardOptions(
                 death_value=float(opt.reward_death_value), win=float(opt.reward_win),
                 defeat=float(opt.reward_defeat), negative_scale=float(opt.reward_negative_scale),
-                sparse=bool(opt.reward_sparse), only_positive=bool(opt.reward_only_positive)),
+                sparse=bool(opt.reward_sparse), only_positive=bool(opt.reward_only_positive),
+                absolute=bool(opt.reward_abs)),
             divisor=self.divisor)

@@ -258,7 +258,8 @@ class StepOutcome(NamedTuple):
 
 class RewardOptions(NamedTuple):
     """SMAC's reward options as the kernels read them (numbers only): ``death_value``, ``win``, ``defeat``,
-    ``negative_scale`` float (reward points), ``sparse``, ``only_positive`` bool."""
+    ``negative_scale`` float (reward points), ``sparse``, ``only_positive``, ``absolute`` bool (with
+    ``only_positive``: SMAC v1's ``abs`` in place of ``max(0, .)``)."""
 
     death_value: float
     win: float
@@ -266,6 +267,7 @@ class RewardOptions(NamedTuple):
     negative_scale: float
     sparse: bool
     only_positive: bool
+    absolute: bool
 
 
 class StepRules(NamedTuple):
@@ -602,7 +604,8 @@ def _side_reward(won, beaten, lost_enemy, lost_own, died_enemy, died_own, option
         return 1.0 if won else (-1.0 if beaten else 0.0)
     death_value, negative_scale = options.death_value, options.negative_scale
     if options.only_positive:
-        r = max(0.0, lost_enemy + death_value * died_enemy)
+        r = lost_enemy + death_value * died_enemy
+        r = abs(r) if options.absolute else max(0.0, r)  # abs: enemy regeneration pays (SMAC v1)
     else:
         r = (lost_enemy + (death_value * died_enemy - death_value * negative_scale * died_own)
              - negative_scale * lost_own)
