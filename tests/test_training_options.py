@@ -16,7 +16,7 @@ torch.set_num_threads(1)
 
 
 def test_reward_is_validated_and_names_the_bad_value():
-    with pytest.raises(ValueError, match=r"reward must be one of \('positive', 'signed'\), got 'dense'"):
+    with pytest.raises(ValueError, match=r"reward must be one of \('positive', 'signed', 'abs'\), got 'dense'"):
         TrainConfig(reward="dense", out="x")
     with pytest.raises(SystemExit):  # argparse's choices: "invalid choice: 'dense'"
         main(["train", "--map", "3m", "--reward", "dense"])
@@ -43,6 +43,28 @@ def test_signed_reward_charges_the_damage_taken():
     # Two crawler hits or more per battle in 12 steps (one every 3.7 steps once in range): at least 2 x 30 damage,
     # scaled by 20 / (300 + 10 + 200) (the crawler's health, its death and the win) and halved.
     assert (totals["signed"] <= -2 * 30 * 0.5 * 20 / 510 + 1e-6).all()
+
+
+def test_abs_reward_pays_the_crawlers_regeneration():
+    # 2s_vs_1sc: the stalkers walk north into range, fire for 4 steps, then walk south out of the spine crawler's
+    # reach and stop. The crawler regenerates 0.2734 health per Normal second (Zerg), 0.1367 a step of 8 loops:
+    # SMAC v1's abs(damage + kills) pays each step's regeneration as if it were damage (scaled by 20 / 510: the
+    # crawler's 300 health, its death's 10 and the win's 200); smac-hard-gym's default pays nothing for it.
+    north, attack, south, stop = 2, 6, 3, 1
+    plan = [north] * 4 + [attack] * 4 + [south] * 6
+    totals = {}
+    for reward in ("positive", "abs"):
+        kwargs = TrainConfig(map_name="2s_vs_1sc", reward=reward, out="x").train_env_kwargs()
+        env = vector.NativeVectorEnv(kwargs.pop("map_name"), 1, opponent="smac", **kwargs)
+        env.reset(seed=0)
+        for action in plan:
+            env.step(np.full((1, 2), action))
+        crawler = env.core.backend.state.health[0, 2]
+        assert 250 < crawler < 300  # hit, not dead: it has something to regenerate
+        totals[reward] = sum(float(env.step(np.full((1, 2), stop))[1][0]) for _ in range(16))
+        env.close()
+    assert totals["positive"] == 0.0
+    assert totals["abs"] == pytest.approx(16 * 0.2734 / 2 * 20 / 510, rel=1e-3)
 
 
 def test_train_gives_the_signed_reward_to_training_battles_only(tmp_path, monkeypatch):

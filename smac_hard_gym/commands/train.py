@@ -45,10 +45,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="let the entropy coefficient fall linearly from --ent-coef at the first update to COEF "
                              "at the last (default: --ent-coef throughout)")
     parser.add_argument("--gamma", type=float, default=0.99)
-    parser.add_argument("--reward", default="positive", choices=("positive", "signed"),
-                        help="the training battles' reward: positive (SMAC's default: damage dealt and kills) or "
+    parser.add_argument("--reward", default="positive", choices=("positive", "signed", "abs"),
+                        help="the training battles' reward: positive (SMAC's default: damage dealt and kills), "
                              "signed (SMAC's reward_only_positive=False: damage taken and deaths count against, "
-                             "regenerated shields for, at half weight); test evaluations use SMAC's default")
+                             "regenerated shields for, at half weight) or abs (SMAC v1's abs(damage + kills), which "
+                             "also pays for enemy regeneration and healing, as in the SMAC-HARD paper's runs); test "
+                             "evaluations use the default")
     parser.add_argument("--net-arch", default="128,128", help="hidden layer sizes (default 128,128)")
     parser.add_argument("--torch-threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--env-threads", type=int, default=1, help="engine (numba) threads (default 1)")

@@ -16,8 +16,10 @@ __all__ = ["TrainConfig", "POLICIES", "REWARDS"]
 POLICIES = ("joint", "shared")  # train --policy
 # train --reward: SMAC's reward as the training battles give it. "positive": SMAC's default (reward_only_positive:
 # damage dealt and kills only); "signed": reward_only_positive=False (damage taken, deaths and regenerated shields
-# count too, at reward_negative_scale 0.5). Test evaluations keep SMAC's default, so test returns compare across runs.
-REWARDS = ("positive", "signed")
+# count too, at reward_negative_scale 0.5); "abs": SMAC v1's form of the positive reward, abs(damage + kills), which
+# also pays for enemy regeneration and healing (what the SMAC-HARD paper's runs were paid). Test evaluations keep
+# smac-hard-gym's default, so test returns compare across runs.
+REWARDS = ("positive", "signed", "abs")
 
 
 @dataclass
@@ -140,6 +142,8 @@ class TrainConfig:
         kwargs = self.env_kwargs()
         if self.reward == "signed":
             kwargs["reward_only_positive"] = False
+        elif self.reward == "abs":
+            kwargs["reward_abs"] = True
         return kwargs
 
     def ppo_kwargs(self) -> dict[str, Any]:
