@@ -11,11 +11,13 @@ package); ``smac-hard-gym solutions`` prints the table; ``tests/test_known_solut
   (beats ``smac``). SMAC-HARD's focus-fire zealot (``weakest``: an explicit attack order) never switches: the
   runner is cornered (SMAC-HARD paper, section 6.1). In the **kiting** variant the chased marine keeps running, in a
   circle round its partner, which stands and shoots: that beats the focus-fire zealot too.
-- 2s_vs_1sc, **tank swap** (SMAC's stalker micro against the static crawler): both stalkers shoot; the one the
-  spine crawler is shooting walks out of its range once its shields are gone and its partner has more left, so the
-  crawler, which cannot follow, turns on the partner, and the first one's shields come back. That beats ``smac``
-  (and ``base``, which gives no order on this map); standing, the two lose. SMAC-HARD's ``spine_weaker`` shoots
-  the weaker stalker within 8.7 by explicit order, so the one that walked out is shot again as it returns.
+- 2s_vs_1sc, **waiting**: SMAC's map creates the spine crawler by trigger where there is no creep, and a Zerg
+  structure off creep loses 1 HP every 0.3332 Normal s (game data, ``ZergBuildingNotOnCreep``; net of its
+  regeneration 2.73 HP a Normal second), so it dies at step ~220 of the map's 300 on its own: stalkers that never
+  fight (``stop``) win against any script. **Standing** and shooting wins too, narrowly: by the time the crawler has
+  killed both stalkers (12 hits, ~41 steps) they have dealt ~250 and the decay ~56 of its 300. The **tank swap**
+  (the stalker being shot walks out of range, the crawler turns on its partner) wins with both stalkers alive, also
+  against SMAC-HARD's ``spine_weaker``, which re-targets the weaker stalker within 8.7 by explicit order.
 - 3s_vs_3z / 3s_vs_4z, **stalker kiting** (the paper's section 6.2): attack when the weapon is ready, step back
   from the nearest zealot otherwise; stalkers are faster than zealots, so the zealots rarely land a blow. The same
   stalkers **standing** their ground lose the melee.
@@ -42,6 +44,7 @@ import numpy as np
 
 from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.opponents.generic import READY_LOOPS as FIRES_THIS_STEP
+from smac_hard_gym.opponents.generic import Stop
 from smac_hard_gym.opponents.helpers import (
     BatchScript,
     Frame,
@@ -441,6 +444,7 @@ _FACTORIES: dict[str, Callable[[], BatchScript]] = {
     "alternating_aggro": lambda: AlternatingAggro(kite=False),
     "kite_aggro": lambda: AlternatingAggro(kite=True),
     "tank_swap": TankSwap,
+    "stop": Stop,
     "stalker_kite": lambda: StalkerKite(kite=True),
     "stalker_stand": lambda: StalkerKite(kite=False),
     "hold_choke": HoldChoke,
@@ -455,12 +459,15 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("2m_vs_1z", "alternating_aggro", "weakest", "a focus-fire zealot never switches: the runner is caught",
           at_most=0.2),
     Claim("2m_vs_1z", "kite_aggro", "weakest", "the chased marine kites while the other shoots", at_least=0.8),
+    Claim("2s_vs_1sc", "stop", "smac", "the crawler, off creep, loses 1 HP every 0.3332 s and dies by step ~220 of "
+          "300 (QMIX 0.99, MAPPO 1.00 in SC2 at 2M steps)", at_least=0.99),
+    Claim("2s_vs_1sc", "stop", "spine_weaker", "a script cannot save the crawler from its decay", at_least=0.99),
     Claim("2s_vs_1sc", "tank_swap", "smac", "the crawler cannot follow, so it turns on the stalker left in range",
           at_least=0.8),
-    Claim("2s_vs_1sc", "stalker_stand", "smac", "standing, the crawler kills one stalker, then the other",
-          at_most=0.2),
-    Claim("2s_vs_1sc", "tank_swap", "spine_weaker", "a crawler ordered onto the weaker stalker shoots it again as it "
-          "returns", at_most=0.2),
+    Claim("2s_vs_1sc", "stalker_stand", "smac", "standing, the stalkers deal ~250 before both die, the decay the rest",
+          at_least=0.8),
+    Claim("2s_vs_1sc", "tank_swap", "spine_weaker", "the script re-targets the weaker stalker, but the decay wins",
+          at_least=0.8),
     Claim("3s_vs_3z", "stalker_kite", "smac", "stalkers outrun zealots: shoot, step back", at_least=0.8),
     Claim("3s_vs_3z", "stalker_stand", "smac", "standing stalkers lose the melee to zealots", at_most=0.2),
     Claim("3s_vs_4z", "stalker_kite", "smac", "kiting beats four zealots", at_least=0.8),

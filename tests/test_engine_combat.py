@@ -211,6 +211,22 @@ def test_zerg_health_regeneration():
     assert engine.state.health[0, 0] == pytest.approx(20.0 + 0.2734)
 
 
+def test_a_spine_crawler_off_creep_decays_and_dies():
+    # Game data: a Zerg structure off creep (ZergBuildingNotOnCreep) takes 1 damage every 0.3332 Normal s, armour
+    # aside, while it keeps regenerating 0.2734 HP per Normal s (Liquipedia, Creep: 4.2 - 0.38 = 3.82 per Faster s).
+    # SMAC's maps have no creep. From full health the first loop has nothing to regenerate: after 16 loops the
+    # crawler has lost 16 x (1 / 0.3332) / 16 and regained 15 x 0.2734 / 16.
+    engine = engine_with(["Stalker_RL"], ["SpineCrawler"], {0: (4.0, 4.0), 1: (28.0, 28.0)})
+    engine.step(n_loops=16)
+    assert engine.state.health[0, 1] == pytest.approx(300.0 - 1.0 / 0.3332 + 15 * 0.2734 / 16)
+    # Net 2.7278 HP a Normal second: 300 HP last 109.98 s, loop 1760 (no kill credit: nobody attacked it).
+    engine.step(n_loops=1759 - 16)
+    assert engine.state.alive[0, 1]
+    engine.step(n_loops=2)
+    assert not engine.state.alive[0, 1]
+    assert engine.state.health[0, 0] == 80.0  # the stalker never fought
+
+
 def test_passive_learner_units_do_not_respond():
     # A *_RL marine being shot does nothing; a standard marine being shot answers (response when attacked).
     engine = engine_with(["Marine_RL"], ["Marine"], {0: (10.0, 16.0), 1: (14.0, 16.0)})

@@ -89,7 +89,7 @@ _SPEED, _RADIUS, _ATTR, _IS_AIR = S["speed"], S["radius"], S["attributes"], S["i
 _WEAPON, _MOVER = S["weapon"], S["mover"]
 _SPLASH_R, _SPLASH_L, _SPLASH_W = S["splash_radius"], S["splash_length"], S["splash_width"]
 _ENERGY_MAX, _ENERGY_REGEN = S["energy_max"], S["energy_regen"]
-_HEAL_RATE, _HEAL_COST, _REGEN = S["heal_rate"], S["heal_energy_per_hp"], S["regen"]
+_HEAL_RATE, _HEAL_COST, _REGEN, _DECAY = S["heal_rate"], S["heal_energy_per_hp"], S["regen"], S["decay"]
 _PASSIVE, _SCAN, _SHIELD_REGEN = S["passive"], S["scan_range"], S["shield_regen"]
 _MISSILE_SPEED, _SECOND_DELAY, _SECOND_REACH = S["missile_speed"], S["second_hit_delay"], S["second_hit_reach"]
 
@@ -255,6 +255,7 @@ def _timers(n, r, slot_stats):
         regen = slot_stats[i, _REGEN]
         if regen > 0.0 and health[i] < slot_stats[i, _HEALTH]:
             health[i] = min(slot_stats[i, _HEALTH], health[i] + regen)
+        health[i] -= slot_stats[i, _DECAY]  # a Zerg structure off creep; a unit it kills dies in _deaths
         if slot_stats[i, _SHIELD] > 0.0:
             if shield_wait[i] > 0.0:
                 shield_wait[i] -= 1.0

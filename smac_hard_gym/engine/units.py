@@ -40,6 +40,9 @@ WEAPON_PLAIN, WEAPON_LINE_SPLASH, WEAPON_BURST, WEAPON_HEAL = 0, 1, 2, 3
 SHIELD_REGEN_DELAY_LOOPS = 10.0 * LOOPS_PER_SECOND  # xml: shields regenerate after 10 Normal s without damage
 SHIELD_REGEN_PER_SECOND = 2.0  # xml: 2 shield per Normal second
 ZERG_REGEN_PER_SECOND = 0.2734  # xml: 0.2734 HP per Normal second (0.38 Faster)
+# gamedata: a Zerg structure off creep (behaviour ZergBuildingNotOnCreep) takes ZergBuildingNotOnCreepDamage, 1 HP
+# every 0.3332 Normal s, armour aside (Liquipedia, Creep: 4.2 HP per Faster second); SMAC's maps have no creep.
+OFF_CREEP_DECAY_PER_SECOND = 1.0 / 0.3332
 MIN_DAMAGE = 0.5  # SC2: a hit on health deals at least 0.5 after armour
 
 
@@ -79,6 +82,7 @@ class UnitSpec:
     heal_rate: float = 0.0  # HP per Normal second
     heal_energy_per_hp: float = 0.0
     regen: float = 0.0  # health per Normal second (zerg)
+    decay: float = 0.0  # health lost per Normal second, armour aside (a Zerg structure off creep)
     passive: bool = False  # SMAC *_RL: no auto-acquire while idle, no response when attacked
     smac_max_cooldown: float = 15.0  # smac: normaliser of the state's cooldown/energy column
     autocast_range: float = 0.0  # a healer's heal auto-cast reach, edge to edge (0: no auto-cast)
@@ -185,10 +189,12 @@ _STANDARD: list[UnitSpec] = [
         "spine_crawler", "SpineCrawler", "spine_crawler", 98, "Z", health=300, shield=0, armor=2, damage=25,
         hits=1, bonus_damage=5, bonus_attribute=ARMORED, cooldown=1.85 * LOOPS_PER_SECOND, range=7,
         hits_ground=True, hits_air=False, speed=0.0, radius=1.125, sight=11,
-        attributes=ARMORED | BIO | STRUCTURE, regen=ZERG_REGEN_PER_SECOND, smac_max_cooldown=15,
+        attributes=ARMORED | BIO | STRUCTURE, regen=ZERG_REGEN_PER_SECOND, decay=OFF_CREEP_DECAY_PER_SECOND,
+        smac_max_cooldown=15,
         sources={"health,armor,damage,bonus,range,radius,sight,attributes": "techtree / lqp",
                  "cooldown": "techtree 1.85 Normal s (lqp 1.32 Faster)", "speed": "rooted structure",
-                 "regen": "zerg regeneration (xml rate)"},
+                 "regen": "zerg regeneration (xml rate)",
+                 "decay": "gamedata ZergBuildingNotOnCreep: 1 HP per 0.3332 s off creep (no creep on SMAC's maps)"},
     ),
 ]
 
@@ -246,11 +252,11 @@ STAT_COLUMNS = (
     "hits_ground", "hits_air", "speed", "radius", "sight", "attributes", "is_air", "cliff_walk", "weapon",
     "splash_radius", "splash_length", "splash_width", "energy_start", "energy_max", "energy_regen", "heal_rate",
     "heal_energy_per_hp", "regen", "passive", "scan_range", "shield_regen", "mover", "missile_speed",
-    "second_hit_delay", "second_hit_reach",
+    "second_hit_delay", "second_hit_reach", "decay",
 )
 S = {name: i for i, name in enumerate(STAT_COLUMNS)}  # column index by name
 
-_PER_SECOND_COLUMNS = ("speed", "energy_regen", "heal_rate", "regen", "shield_regen", "missile_speed")
+_PER_SECOND_COLUMNS = ("speed", "energy_regen", "heal_rate", "regen", "shield_regen", "missile_speed", "decay")
 
 
 def scan_range(spec: UnitSpec) -> float:
