@@ -255,7 +255,9 @@ def _timers(n, r, slot_stats):
         regen = slot_stats[i, _REGEN]
         if regen > 0.0 and health[i] < slot_stats[i, _HEALTH]:
             health[i] = min(slot_stats[i, _HEALTH], health[i] + regen)
-        health[i] -= slot_stats[i, _DECAY]  # a Zerg structure off creep; a unit it kills dies in _deaths
+        decay = slot_stats[i, _DECAY]  # a Zerg structure off creep; a unit it kills dies in _deaths
+        if decay > 0.0:
+            health[i] -= decay
         if slot_stats[i, _SHIELD] > 0.0:
             if shield_wait[i] > 0.0:
                 shield_wait[i] -= 1.0
