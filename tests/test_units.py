@@ -75,10 +75,11 @@ KILLS = [
     # the second attack, loop 24.
     ("Zergling_RL", "Colossus", 8.0, shot_loop(1, 24.0), 24),
     # Spine crawler 25 + 5 armoured on a marauder, armour 1: 29 per shot, 125 HP -> 5 shots (4 x 29 = 116): the 5th
-    # at ceil(4 x 29.6) = 119. Range 7: centre 8 is 6.3125 edge to edge (radii 1.125 + 0.5625).
-    ("Marauder_RL", "SpineCrawler", 8.0, shot_loop(4, 29.6), 119),
-    # Spine crawler 25 on a zergling (35 HP): 2 shots, the second at ceil(29.6) = 30.
-    ("Zergling_RL", "SpineCrawler", 8.0, shot_loop(1, 29.6), 30),
+    # at ceil(4 x 29.6) = 119, its tentacle landing ceil(8 / (31 / 16)) = 5 loops later. Range 7: centre 8 is
+    # 6.3125 edge to edge (radii 1.125 + 0.5625).
+    ("Marauder_RL", "SpineCrawler", 8.0, shot_loop(4, 29.6) + 5, 124),
+    # Spine crawler 25 on a zergling (35 HP): 2 shots, the second at ceil(29.6) = 30, landing 5 loops later.
+    ("Zergling_RL", "SpineCrawler", 8.0, shot_loop(1, 29.6) + 5, 35),
 ]
 
 
