@@ -8,6 +8,9 @@ to a temporary file, then renamed into place).
 Final win rate = the mean of the job's last ``--last`` (default 3) test evaluations; with EPyMARL's sc2.yaml
 (test_interval 50000, test_nepisode 100) these are the evaluations at about t_env 1.95M, 2.0M and 2.05M, 300 greedy
 episodes in all. A job without done.json is shown as in progress with the same mean over its latest evaluations.
+``--out`` takes several folders (runs kept apart, e.g. made on different pinned installs); the report and curves
+go to the first. Below the table: Spearman's rank correlation of each algorithm's finished runs (mean over seeds)
+with the paper's column, over the maps where it has one.
 """
 
 from __future__ import annotations
@@ -15,37 +18,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import tempfile
 from pathlib import Path
 
-# SMAC-HARD paper (arXiv 2412.17707), appendix "Final Performance at 2M time step", table captioned
-# "Final performance at 2M time step with default opponent policy" (SMAC's own opponent): (QMIX, MAPPO) columns.
-# QMIX from pymarl2, MAPPO from Yu et al.'s on-policy code; 5 seeds, win rate over 32 test episodes.
-PAPER_2M_DEFAULT_OPPONENT = {
-    "3m": (0.9798, 0.9897),
-    "8m": (0.9797, 0.9538),
-    "5m_vs_6m": (0.544, 0.5103),
-    "8m_vs_9m": (0.9137, 0.7821),
-    "10m_vs_11m": (0.9515, 0.6859),
-    "25m": (0.975, 0.9692),
-    "27m_vs_30m": (0.4202, 0.6051),
-    "2s3z": (0.9732, 0.941),
-    "3s5z": (0.9485, 0.4512),
-    "3s5z_vs_3s6z": (0.0256, 0.1128),
-    "1c3s5z": (0.9893, 0.982),
-    "3s_vs_3z": (0.994, 0.982),
-    "3s_vs_4z": (0.9857, 0.9744),
-    "3s_vs_5z": (0.7771, 0.9744),
-    "bane_vs_bane": (0.783, 0.9974),
-    "so_many_baneling": (0.9672, 0.9821),
-    "2s_vs_1sc": (0.9917, 1.0),
-    "2m_vs_1z": (0.9926, 1.0),
-    "2c_vs_64zg": (0.9226, 0.9359),
-    "MMM": (0.9824, 0.9256),
-    "MMM2": (0.7875, 0.4487),
-    "6h_vs_8z": (0.1438, 0.0154),
-    "corridor": (0.0, 0.3077),
-}
+from smac_hard_gym.training.baselines.claims import spearman
+from smac_hard_gym.training.baselines.paper import PAPER
+
+# SMAC-HARD paper (arXiv 2412.17707), appendix table "Final performance at 2M time step with default opponent
+# policy" (SMAC's own opponent): (QMIX, MAPPO) per map; QMIX from pymarl2, MAPPO from Yu et al.'s on-policy code.
+PAPER_2M_DEFAULT_OPPONENT = PAPER["smac_2m"]
 PAPER_COL = {"qmix": 0, "mappo": 1}
 KEY = "test_battle_won_mean"
 
@@ -90,10 +72,11 @@ def recent_speed(job_dir: Path, window: int = 100_000) -> float | None:
 
 
 def jobs(out: Path) -> list[tuple[str, str, str, Path]]:
-    """(algo, map, seed-folder, dir) of every job folder under out."""
+    """(algo, map, seed-folder, dir) of every job folder under out (not the ``seed<n>.engine-<fingerprint>``
+    folders that ``run_reference.py --restart-changed`` moved aside: runs on an earlier engine)."""
     found = []
     for d in sorted(out.glob("*/*/seed*")):
-        if (d / "sacred").is_dir() or (d / "logs").is_dir():
+        if re.fullmatch(r"seed\d+", d.name) and ((d / "sacred").is_dir() or (d / "logs").is_dir()):
             found.append((d.parent.parent.name, d.parent.name, d.name, d))
     return found
 
@@ -140,16 +123,19 @@ def plot(path: Path, map_name: str, series: dict[str, list[tuple[int, float]]], 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path, required=True, help="the run_reference.py --out folder")
+    p.add_argument("--out", type=Path, nargs="+", required=True,
+                   help="run_reference.py --out folder(s); the report is written to the first")
     p.add_argument("--last", type=int, default=3, help="final win rate = mean of the last N test evaluations")
     p.add_argument("--t-max", type=int, default=2_050_000)
     p.add_argument("--no-plots", action="store_true")
     args = p.parse_args(argv)
-    out = args.out.expanduser().resolve()
+    folders = [o.expanduser().resolve() for o in args.out]
+    out = folders[0]
+    all_jobs = [job for folder in folders for job in jobs(folder)]
 
     rows: dict[str, dict[str, list[tuple[str, float | None, int, bool]]]] = {}
     per_map: dict[str, dict[str, list[tuple[int, float]]]] = {}
-    for algo, map_name, seed, d in jobs(out):
+    for algo, map_name, seed, d in all_jobs:
         pts = curve(d)
         last = [v for _, v in pts[-args.last:]]
         final = sum(last) / len(last) if last else None
@@ -185,6 +171,15 @@ def main(argv: list[str] | None = None) -> int:
     if not rows:
         lines.append("| (no runs found) | | | | |")
     lines.append("")
+    for algo, column in PAPER_COL.items():
+        finished = {m: [f for _, f, _, done in entries[algo] if done and f is not None]
+                    for m, entries in rows.items() if algo in entries and m in PAPER_2M_DEFAULT_OPPONENT}
+        finished = {m: sum(v) / len(v) for m, v in finished.items() if v}
+        maps = sorted(finished)
+        rho = spearman([finished[m] for m in maps], [PAPER_2M_DEFAULT_OPPONENT[m][column] for m in maps])
+        lines.append(f"Spearman, {algo.upper()} (finished runs) with the paper's {algo.upper()}: "
+                     f"{'–' if rho != rho else f'{rho:.2f}'} over {len(maps)} maps ({', '.join(maps) or 'none'}).")
+    lines.append("")
     if not args.no_plots and per_map:
         (out / "curves").mkdir(exist_ok=True)
         for map_name, series in per_map.items():
@@ -193,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         lines.append("")
     lines += ["## Progress", "", "| run | t_env reached | steps/s (last 100k) | hours left at that rate |",
               "|---|---|---|---|"]
-    for algo, map_name, seed, d in jobs(out):
+    for algo, map_name, seed, d in all_jobs:
         pts = curve(d, "ep_length_mean") or curve(d)
         t = pts[-1][0] if pts else 0
         done = (d / "done.json").is_file()
