@@ -22,10 +22,21 @@ def test_reward_is_validated_and_names_the_bad_value():
         main(["train", "--map", "3m", "--reward", "dense"])
 
 
+# The spine crawler off creep loses 1 HP every 0.3332 Normal s and regenerates 0.2734 a Normal second, per game loop
+# (16 a Normal second): from full health the first loop has nothing to regenerate. SMAC pays health lost as damage,
+# scaled by 20 / 510 (the crawler's 300 health, its death's 10 and the win's 200).
+DECAY, REGEN, SCALE = 1 / 0.3332 / 16, 0.2734 / 16, 20 / 510
+
+
+def _crawler_decay_paid(steps: int) -> float:
+    loops = 8 * steps
+    return (loops * DECAY - (loops - 1) * REGEN) * SCALE
+
+
 def test_signed_reward_charges_the_damage_taken():
     # 2s_vs_1sc: the stalkers walk north into the spine crawler's range (7) and never shoot (move, not attack). With
-    # SMAC's default reward nothing is dealt, so every step pays 0; with reward_only_positive=False the crawler's
-    # hits cost reward_negative_scale (0.5) per point of health and shields, scaled as SMAC scales rewards.
+    # SMAC's default reward only the crawler's decay off creep pays; with reward_only_positive=False the crawler's
+    # hits also cost reward_negative_scale (0.5) per point of health and shields, scaled as SMAC scales rewards.
     positive, signed = TrainConfig(map_name="2s_vs_1sc", out="x"), TrainConfig(map_name="2s_vs_1sc", reward="signed",
                                                                              out="x")
     assert "reward_only_positive" not in positive.train_env_kwargs()
@@ -39,32 +50,26 @@ def test_signed_reward_charges_the_damage_taken():
         north = np.full((2, 2), 2)  # action 2: move north, towards the crawler
         totals[name] = sum(env.step(north)[1] for _ in range(12))
         env.close()
-    assert totals["positive"].tolist() == [0.0, 0.0]
+    assert totals["positive"] == pytest.approx([_crawler_decay_paid(12)] * 2)
     # Two crawler hits or more per battle in 12 steps (one every 3.7 steps once in range): at least 2 x 30 damage,
-    # scaled by 20 / (300 + 10 + 200) (the crawler's health, its death and the win) and halved.
-    assert (totals["signed"] <= -2 * 30 * 0.5 * 20 / 510 + 1e-6).all()
+    # halved and scaled, on top of the same decay.
+    assert (totals["signed"] - totals["positive"] <= -2 * 30 * 0.5 * SCALE + 1e-6).all()
 
 
-def test_abs_reward_pays_the_crawlers_regeneration():
-    # 2s_vs_1sc: the stalkers walk north into range, fire for 4 steps, then walk south out of the spine crawler's
-    # reach and stop. The crawler regenerates 0.2734 health per Normal second (Zerg), 0.1367 a step of 8 loops:
-    # SMAC v1's abs(damage + kills) pays each step's regeneration as if it were damage (scaled by 20 / 510: the
-    # crawler's 300 health, its death's 10 and the win's 200); smac-hard-gym's default pays nothing for it.
-    north, attack, south, stop = 2, 6, 3, 1
-    plan = [north] * 4 + [attack] * 4 + [south] * 6
-    totals = {}
-    for reward in ("positive", "abs"):
-        kwargs = TrainConfig(map_name="2s_vs_1sc", reward=reward, out="x").train_env_kwargs()
-        env = vector.NativeVectorEnv(kwargs.pop("map_name"), 1, opponent="smac", **kwargs)
-        env.reset(seed=0)
-        for action in plan:
-            env.step(np.full((1, 2), action))
-        crawler = env.core.backend.state.health[0, 2]
-        assert 250 < crawler < 300  # hit, not dead: it has something to regenerate
-        totals[reward] = sum(float(env.step(np.full((1, 2), stop))[1][0]) for _ in range(16))
-        env.close()
-    assert totals["positive"] == 0.0
-    assert totals["abs"] == pytest.approx(16 * 0.2734 / 2 * 20 / 510, rel=1e-3)
+def test_abs_reward_is_given_to_training_battles_only():
+    # How abs(damage + kills) pays regeneration is worked by hand in tests/test_rewards.py; here: the training
+    # battles get it, the evaluations keep the default, and stalkers that wait are paid the crawler's net decay
+    # either way (it loses more than it regenerates, so abs and max(0, .) agree).
+    config = TrainConfig(map_name="2s_vs_1sc", reward="abs", out="x")
+    assert config.train_env_kwargs()["reward_abs"] is True
+    assert "reward_abs" not in config.env_kwargs()
+    kwargs = config.train_env_kwargs()
+    env = vector.NativeVectorEnv(kwargs.pop("map_name"), 1, opponent="smac", **kwargs)
+    env.reset(seed=0)
+    stop = np.full((1, 2), 1)
+    paid = [float(env.step(stop)[1][0]) for _ in range(3)]
+    env.close()
+    assert paid == pytest.approx([_crawler_decay_paid(1), 8 * (DECAY - REGEN) * SCALE, 8 * (DECAY - REGEN) * SCALE])
 
 
 def test_train_gives_the_signed_reward_to_training_battles_only(tmp_path, monkeypatch):
