@@ -16,8 +16,8 @@ package); ``smac-hard-gym solutions`` prints the table; ``tests/test_known_solut
   regeneration 2.73 HP a Normal second), so it dies at step ~220 of the map's 300 on its own: stalkers that never
   fight (``stop``) win against any script. **Standing** and shooting wins too, narrowly: by the time the crawler has
   killed both stalkers (12 hits, ~41 steps) they have dealt ~250 and the decay ~56 of its 300. The **tank swap**
-  (the stalker being shot walks out of range, the crawler turns on its partner) wins with both stalkers alive, also
-  against SMAC-HARD's ``spine_weaker``, which re-targets the weaker stalker within 8.7 by explicit order.
+  (the stalker being shot walks out of range, the crawler turns on its partner) wins too, also against SMAC-HARD's
+  ``spine_weaker``, which re-targets the weaker stalker within 8.7 by explicit order.
 - 3s_vs_3z / 3s_vs_4z, **stalker kiting** (the paper's section 6.2): attack when the weapon is ready, step back
   from the nearest zealot otherwise; stalkers are faster than zealots, so the zealots rarely land a blow. The same
   stalkers **standing** their ground lose the melee.

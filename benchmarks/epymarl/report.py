@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import tempfile
@@ -178,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
         maps = sorted(finished)
         rho = spearman([finished[m] for m in maps], [PAPER_2M_DEFAULT_OPPONENT[m][column] for m in maps])
         lines.append(f"Spearman, {algo.upper()} (finished runs) with the paper's {algo.upper()}: "
-                     f"{'–' if rho != rho else f'{rho:.2f}'} over {len(maps)} maps ({', '.join(maps) or 'none'}).")
+                     f"{'–' if math.isnan(rho) else f'{rho:.2f}'} over {len(maps)} maps ({', '.join(maps) or 'none'}).")
     lines.append("")
     if not args.no_plots and per_map:
         (out / "curves").mkdir(exist_ok=True)
