@@ -11,6 +11,8 @@ import argparse
 import json
 from typing import Any
 
+from smac_hard_gym.training.config import POLICIES, REWARDS
+
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
 
 
@@ -31,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-episodes", type=int, default=32, help="episodes per evaluation (default 32)")
     parser.add_argument("--obs-mode", default=None, choices=("joint", "joint+state", "dict"),
                         help="observation (default joint; joint+state with --policy shared)")
-    parser.add_argument("--policy", default="joint", choices=("joint", "shared"),
+    parser.add_argument("--policy", default="joint", choices=POLICIES,
                         help="joint: one MLP over all units (default); shared: one 64x64 actor shared by the units "
                              "(with unit ids and last actions), a critic on the global state sized by --net-arch, "
                              "value normalisation (MAPPO; wrappers/sb3_shared.py)")
@@ -45,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="let the entropy coefficient fall linearly from --ent-coef at the first update to COEF "
                              "at the last (default: --ent-coef throughout)")
     parser.add_argument("--gamma", type=float, default=0.99)
-    parser.add_argument("--reward", default="positive", choices=("positive", "signed", "abs"),
+    parser.add_argument("--reward", default="positive", choices=REWARDS,
                         help="the training battles' reward: positive (SMAC's default: damage dealt and kills), "
                              "signed (SMAC's reward_only_positive=False: damage taken and deaths count against, "
                              "regenerated shields for, at half weight) or abs (SMAC v1's abs(damage + kills), which "
