@@ -47,6 +47,7 @@ from smac_hard_gym.opponents.api import Script, ScriptError, SideView
 from smac_hard_gym.opponents.guard import DEFAULT_TIME_LIMIT, call_guarded
 from smac_hard_gym.smac.actions import validate_actions
 from smac_hard_gym.smac.features import SIDE_NAMES, SideFeatures, SmacOptions
+from smac_hard_gym.smac.frame_stack import UnitFrames, check_frame_stack
 from smac_hard_gym.smac.kernels import check_decode_batch
 
 __all__ = ["PolicyScript", "as_policy", "is_policy_file"]
@@ -141,6 +142,10 @@ class PolicyScript(Script):
         self.options = options or SmacOptions()
         self._features: dict[tuple[str, int], SideFeatures] = {}
         self.last_action = np.zeros((0, 0), dtype=np.int64)
+        # frames per agent the policy reads (the env option it was trained with, saved with SB3 models by our
+        # policies): 1 for anything that does not say
+        self.frame_stack = check_frame_stack(getattr(getattr(policy, "policy", policy), "frame_stack", 1))
+        self._frames: UnitFrames | None = None
 
     @classmethod
     def load(cls, path: str | Path, name: str | None = None, options: SmacOptions | None = None,
@@ -181,7 +186,13 @@ class PolicyScript(Script):
         n = view.n_own
         if self.last_action.shape != (view.batch_size, n):
             self.last_action = np.full((view.batch_size, n), -1, dtype=np.int64)
-        self.last_action[np.asarray(battles, dtype=np.int64)] = -1
+        battles = np.asarray(battles, dtype=np.int64)
+        self.last_action[battles] = -1
+        if self.frame_stack > 1:
+            feats = self.features(view)
+            if self._frames is None or self._frames.frames.shape[:2] != (view.batch_size, n):
+                self._frames = UnitFrames(view.batch_size, n, feats.obs_size, self.frame_stack)
+            self._frames.clear(battles)
 
     def act(self, view: SideView, commands: Commands, active: np.ndarray) -> None:
         rows = np.flatnonzero(active)
@@ -189,6 +200,9 @@ class PolicyScript(Script):
             return
         feats = self.features(view)
         masks, obs, state = feats.encode(view.state, self.last_action, view.episode_step, rows=rows)
+        if self._frames is not None:
+            self._frames.push(rows, obs)
+            obs = self._frames.stacked(rows)
         actions = self._validated(self._call(view, obs, masks, state), view, feats, rows)
         batch = view.batch_size
         played = np.zeros((batch, feats.n_agents), dtype=np.int64)

@@ -64,10 +64,14 @@ def test_layout_read_from_the_env_and_shapes():
     kwargs = shared_policy_kwargs(venv)
     feats = venv.venv.venv.core.features[0]
     assert kwargs == {"unit_obs_size": feats.obs_size, "state_size": feats.state_size,
-                      "last_action_offset": 3 * feats.obs_size + feats.state_action_offset}
+                      "last_action_offset": 3 * feats.obs_size + feats.state_action_offset, "frame_stack": 1}
     assert shared_policy_kwargs("3m") == kwargs
     assert shared_policy_kwargs("3m", "joint") == {"unit_obs_size": feats.obs_size, "state_size": 0,
-                                                   "last_action_offset": None}
+                                                   "last_action_offset": None, "frame_stack": 1}
+    # four stacked frames: each unit's block is four observations, the state (and its last actions) after them
+    assert shared_policy_kwargs("3m", frame_stack=4) == {
+        "unit_obs_size": 4 * feats.obs_size, "state_size": feats.state_size,
+        "last_action_offset": 3 * 4 * feats.obs_size + feats.state_action_offset, "frame_stack": 4}
     policy = _model(venv).policy
     obs, masks = _observations(venv)
     assert policy.action_logits(obs).shape == (4, 27)

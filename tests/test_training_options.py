@@ -119,3 +119,30 @@ def test_every_update_uses_the_scheduled_entropy_coefficient(tmp_path, monkeypat
     expected = [0.2] * 4 if final is None else [0.15, 0.1, 0.05, 0.0]
     assert seen == pytest.approx(expected)
     assert json.loads((out / "config.json").read_text())["ent_coef_final"] == final
+
+
+def test_the_shared_policy_defaults_to_mappos_smac_settings_and_overrides_are_kept():
+    """SMAC-HARD's on-policy MAPPO script for 3s_vs_5z: --n_rollout_threads 8 --episode_length 400 --num_mini_batch 1
+    --ppo_epoch 15 --clip_param 0.05 --use_stacked_frames --stacked_frames 4."""
+    shared = TrainConfig(policy="shared", num_envs=64)
+    assert (shared.obs_mode, shared.frame_stack, shared.n_epochs, shared.clip_range) == ("joint+state", 4, 15, 0.05)
+    assert shared.batch_size == 64 * shared.n_steps  # one minibatch: the whole rollout
+    assert TrainConfig(policy="shared", num_envs=8, n_steps=400).batch_size == 3200  # MAPPO's own rollout
+    joint = TrainConfig()  # the first sweep's settings
+    assert (joint.obs_mode, joint.frame_stack, joint.n_steps, joint.batch_size, joint.n_epochs, joint.clip_range) \
+        == ("joint", 1, 32, 512, 10, 0.2)
+    mine = TrainConfig(policy="shared", frame_stack=1, n_epochs=4, clip_range=0.2, batch_size=256)
+    assert (mine.frame_stack, mine.n_epochs, mine.clip_range, mine.batch_size) == (1, 4, 0.2, 256)
+    for bad in (0, 1.0, -0.1, True):
+        with pytest.raises(ValueError, match="clip_range"):
+            TrainConfig(clip_range=bad)
+
+
+def test_a_run_saved_before_frame_stacking_loads_as_single_frames(tmp_path):
+    from smac_hard_gym.training.run_files import load_run_config
+
+    old = {"map_name": "3m", "policy": "shared", "obs_mode": "joint+state", "n_steps": 32, "batch_size": 512,
+           "n_epochs": 10, "clip_range": 0.2}
+    (tmp_path / "config.json").write_text(json.dumps(old))
+    config = load_run_config(tmp_path / "model.zip")
+    assert config.frame_stack == 1 and config.env_kwargs()["frame_stack"] == 1

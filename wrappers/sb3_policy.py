@@ -30,6 +30,7 @@ from sb3_contrib.common.maskable.distributions import MaskableCategorical, Maska
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy, MaskableMultiInputActorCriticPolicy
 from torch.distributions import Distribution
 
+from smac_hard_gym.smac.frame_stack import check_frame_stack
 from smac_hard_gym.wrappers.torch_exp import logsumexp
 
 __all__ = ["BatchedMaskableMultiCategorical", "MaskableJointPolicy", "MaskableJointMultiInputPolicy"]
@@ -136,7 +137,18 @@ class _JointCategorical(MaskableCategorical):
 
 
 class _BatchedJointAction:
-    """Swaps sb3-contrib's MultiCategorical for the batched one when every sub-action has the same size."""
+    """Swaps sb3-contrib's MultiCategorical for the batched one when every sub-action has the same size, and records
+    ``frame_stack``, the env option the observations come from (saved with the model, so opponents and evaluations
+    rebuild the same observation)."""
+
+    def __init__(self, *args: Any, frame_stack: int = 1, **kwargs: Any) -> None:
+        self.frame_stack = check_frame_stack(frame_stack)
+        super().__init__(*args, **kwargs)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data["frame_stack"] = self.frame_stack
+        return data
 
     def _build(self, lr_schedule: Any) -> None:
         dims = getattr(self.action_dist, "action_dims", None)

@@ -42,6 +42,10 @@ networks are MAPPO's (Yu et al. 2022, "The Surprising Effectiveness of PPO in Co
   with the rollout's returns. Train with ``rollout_buffer_class=SharedUnitRolloutBuffer`` (without it the statistics
   stay at mean 0, std 1, i.e. no normalisation, and a warning says so). ``value_norm="popart"`` also rescales the
   value head on every update so its de-normalised outputs are preserved (PopArt's "ART"); ``"none"`` turns it off.
+- **memory** (``frame_stack``): SMAC's observation has no weapon cooldown, so a unit that sees one step cannot tell
+  when it can fire again, which kiting needs. With the env's ``frame_stack=k`` (:mod:`~smac_hard_gym.smac.frame_stack`)
+  a unit's block is its last k observations, newest first, and the actor reads them all (``unit_obs_size`` = k times
+  SMAC's); MAPPO's SMAC runs use a recurrent core, and stacked frames on the kiting maps.
 - **dead units**: a dead unit's only legal action is no-op, so its masked logits give log-probability 0 and entropy
   0 exactly: it adds nothing to the PPO ratio, the entropy bonus or the actor's gradient (tested). The training pass
   therefore runs the actor on the living units' rows only (a unit is living when an action other than no-op is
@@ -71,6 +75,7 @@ from gymnasium import spaces
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from torch import nn
 
+from smac_hard_gym.smac.frame_stack import check_frame_stack
 from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
 from smac_hard_gym.wrappers.sb3_policy import BatchedMaskableMultiCategorical
 
@@ -85,12 +90,14 @@ VALUE_NORMS = ("running", "popart", "none")
 # Layout.
 
 
-def shared_policy_kwargs(source: Any, obs_mode: str | None = None, **smac_options: Any) -> dict[str, Any]:
-    """``unit_obs_size``, ``state_size`` and ``last_action_offset`` of a joint observation, for ``policy_kwargs``.
+def shared_policy_kwargs(source: Any, obs_mode: str | None = None, frame_stack: int | None = None,
+                         **smac_options: Any) -> dict[str, Any]:
+    """``unit_obs_size``, ``state_size``, ``last_action_offset`` and ``frame_stack`` of a joint observation, for
+    ``policy_kwargs``.
 
     ``source``: an env (gymnasium or SB3, vector or single, wrapped or not, with a ``core`` holding SMAC features
-    and a ``view`` holding the obs mode), a :class:`~smac_hard_gym.smac.features.SideFeatures`, or a map name (then
-    ``obs_mode``, default "joint+state", and any SMAC options as keywords).
+    and a ``view`` holding the obs mode and frame stack), a :class:`~smac_hard_gym.smac.features.SideFeatures`, or a
+    map name (then ``obs_mode``, default "joint+state", ``frame_stack``, default 1, and any SMAC options as keywords).
     """
     from smac_hard_gym.smac.features import SideFeatures
 
@@ -106,16 +113,19 @@ def shared_policy_kwargs(source: Any, obs_mode: str | None = None, **smac_option
         env = _find_env(source)
         feats = env.core.features[0]
         obs_mode = obs_mode or env.view.obs_mode
+        frame_stack = env.view.frame_stack if frame_stack is None else frame_stack
     obs_mode = obs_mode or "joint+state"
+    frame_stack = check_frame_stack(1 if frame_stack is None else frame_stack)
     if obs_mode not in ("joint", "joint+state"):
         raise ValueError(f"the shared policy reads Box observations: obs_mode 'joint' or 'joint+state', got "
                          f"{obs_mode!r}")
-    n, size = feats.n_agents, feats.obs_size
+    n, size = feats.n_agents, feats.obs_size * frame_stack
     with_state = obs_mode == "joint+state"
     opt = feats.options
     has_actions = with_state and opt.state_last_action and not opt.obs_instead_of_state
     return {"unit_obs_size": int(size), "state_size": int(feats.state_size) if with_state else 0,
-            "last_action_offset": int(n * size + feats.state_action_offset) if has_actions else None}
+            "last_action_offset": int(n * size + feats.state_action_offset) if has_actions else None,
+            "frame_stack": frame_stack}
 
 
 def _find_env(env: Any) -> Any:
@@ -185,12 +195,14 @@ class SharedUnitRolloutBuffer(MaskableJointRolloutBuffer):
 class SharedUnitPolicy(MaskableActorCriticPolicy):
     """One actor shared by every unit, a centralised critic and value normalisation (see the module docstring).
 
-    ``unit_obs_size``: one unit's SMAC observation size (default: the observation size over ``n_agents``, for
-    ``obs_mode="joint"``); ``state_size``: the global state's size at the end of the observation (0: none);
-    ``last_action_offset``: where the state's ``n_agents * n_actions`` last-action block starts in the observation
-    (None: no last-action input). ``unit_ids``: append the one-hot unit id. ``critic``: "state", "obs" or "unit".
-    ``value_norm``: "running", "popart" or "none". ``net_arch``: a list (both networks) or ``dict(pi=..., vf=...)``;
-    default ``dict(pi=[64, 64], vf=[128, 128])``. ReLU by default, orthogonal initialisation as SB3's.
+    ``unit_obs_size``: one unit's observation block, its SMAC observation times ``frame_stack`` (default: the
+    observation size over ``n_agents``, for ``obs_mode="joint"``); ``frame_stack``: the env's ``frame_stack`` the
+    blocks come from (saved with the model, so opponents and evaluations rebuild the same observation);
+    ``state_size``: the global state's size at the end of the observation (0: none); ``last_action_offset``: where the
+    state's ``n_agents * n_actions`` last-action block starts in the observation (None: no last-action input).
+    ``unit_ids``: append the one-hot unit id. ``critic``: "state", "obs" or "unit". ``value_norm``: "running",
+    "popart" or "none". ``net_arch``: a list (both networks) or ``dict(pi=..., vf=...)``; default ``dict(pi=[64, 64],
+    vf=[128, 128])``. ReLU by default, orthogonal initialisation as SB3's.
     """
 
     def __init__(self, observation_space: spaces.Space, action_space: spaces.Space, lr_schedule: Any,
@@ -198,7 +210,7 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
                  activation_fn: type[nn.Module] = nn.ReLU, *args: Any, unit_obs_size: int | None = None,
                  state_size: int = 0, last_action_offset: int | None = None, unit_ids: bool = True,
                  last_action: bool = True, critic: str | None = None, value_norm: str = "running",
-                 value_norm_beta: float = 0.99999, **kwargs: Any) -> None:
+                 value_norm_beta: float = 0.99999, frame_stack: int = 1, **kwargs: Any) -> None:
         """SB3's policy constructor (spaces, schedule, ``net_arch``, activation and its own keywords passed through),
         then this policy's options by keyword: SB3 saves a policy's constructor keywords with ``model.zip`` and
         rebuilds it from them (``policy_kwargs``), so each option is a flat keyword, hence the long list."""
@@ -220,6 +232,10 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
                                                    and last_action_offset + n * n_actions <= dim):
             raise ValueError(f"last_action_offset {last_action_offset} does not fit a {n}x{n_actions} block inside "
                              f"the state of the {dim}-value observation")
+        frame_stack = check_frame_stack(frame_stack)
+        if unit_obs_size % frame_stack:
+            raise ValueError(f"unit_obs_size {unit_obs_size} is not frame_stack {frame_stack} frames of one size")
+        self.frame_stack = frame_stack
         critic = critic or ("state" if state_size else "obs")
         if critic not in CRITICS:
             raise ValueError(f"critic must be one of {CRITICS}, got {critic!r}")
@@ -278,7 +294,8 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         data = super()._get_constructor_parameters()
         data.update(unit_obs_size=self.unit_obs_size, state_size=self.state_size,
                     last_action_offset=self.last_action_offset, unit_ids=self.unit_ids, last_action=self.last_action,
-                    critic=self.critic, value_norm=self.value_norm, value_norm_beta=self.value_norm_beta)
+                    critic=self.critic, value_norm=self.value_norm, value_norm_beta=self.value_norm_beta,
+                    frame_stack=self.frame_stack)
         return data
 
     # -- the networks ----------------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """``bench train``: MaskablePPO's training throughput (rollouts and updates) with sb3-contrib's stock policy and buffer
 against the joint ones ``smac-hard-gym train`` uses, and ``train --policy shared``'s unit-shared policy
-(wrappers/sb3_shared.py, on the ``joint+state`` view), at ``train``'s settings, interleaved round by round.
+(wrappers/sb3_shared.py), each at ``train``'s defaults for its policy, interleaved round by round.
 
 The stock and joint variants start from the same seed and learn the same steps, so their weights must come out
 equal; the result says whether they did, next to the steps/s (the shared policy is another network: not applicable).
@@ -32,13 +32,12 @@ def _model(variant: str, map_name: str, num_envs: int, seed: int) -> Any:
     from smac_hard_gym.wrappers.sb3_policy import MaskableJointPolicy
     from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy, SharedUnitRolloutBuffer
 
-    shared = variant == "shared"
-    obs_mode = "joint+state" if shared else "joint"
-    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(map_name, num_envs, autoreset_mode="SameStep", opponent="smac",
-                                                obs_mode=obs_mode)))
+    config = TrainConfig(map_name=map_name, seed=seed, num_envs=num_envs,
+                         policy="shared" if variant == "shared" else "joint")
+    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(num_envs=num_envs, autoreset_mode="SameStep", opponent="smac",
+                                                **config.env_kwargs())))
     policy, buffer = {"stock": ("MlpPolicy", None), "joint": (MaskableJointPolicy, MaskableJointRolloutBuffer),
                       "shared": (SharedUnitPolicy, SharedUnitRolloutBuffer)}[variant]
-    config = TrainConfig(map_name=map_name, seed=seed, obs_mode=obs_mode, policy="shared" if shared else "joint")
     model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, **config.ppo_kwargs())
     model.set_logger(Logger(folder=None, output_formats=[]))
     return model

@@ -11,9 +11,20 @@ import argparse
 import json
 from typing import Any
 
-from smac_hard_gym.training.config import POLICIES, REWARDS
+from smac_hard_gym.training.config import POLICIES, POLICY_DEFAULTS, REWARDS
 
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
+
+
+def _policy_defaults() -> str:
+    """POLICY_DEFAULTS as help text: "joint: obs-mode joint, ...; shared: ..."."""
+    def value(v: object) -> str:
+        return "the whole rollout" if v is None else str(v)
+
+    flags = {"n_epochs": "epochs"}  # the config's field names that the CLI spells otherwise
+    return "; ".join(f"{policy}: " + ", ".join(f"{flags.get(key, key).replace('_', '-')} {value(v)}"
+                                               for key, v in table.items())
+                     for policy, table in POLICY_DEFAULTS.items())
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,16 +42,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-every", type=int, default=0,
                         help="env steps between evaluations (default: a tenth of --timesteps)")
     parser.add_argument("--eval-episodes", type=int, default=32, help="episodes per evaluation (default 32)")
-    parser.add_argument("--obs-mode", default=None, choices=("joint", "joint+state", "dict"),
-                        help="observation (default joint; joint+state with --policy shared)")
     parser.add_argument("--policy", default="joint", choices=POLICIES,
                         help="joint: one MLP over all units (default); shared: one 64x64 actor shared by the units "
-                             "(with unit ids and last actions), a critic on the global state sized by --net-arch, "
-                             "value normalisation (MAPPO; wrappers/sb3_shared.py)")
-    parser.add_argument("--n-steps", type=int, default=32,
-                        help="rollout length per env (default 32: 64 x 32 = 2048 samples per update)")
-    parser.add_argument("--batch-size", type=int, default=512)
-    parser.add_argument("--epochs", type=int, default=10, help="PPO epochs per update (default 10)")
+                             "(with unit ids, last actions and stacked frames), a critic on the global state sized "
+                             "by --net-arch, value normalisation (MAPPO; wrappers/sb3_shared.py). The options below "
+                             f"marked 'the policy's' default to {_policy_defaults()}")
+    parser.add_argument("--obs-mode", default=None, choices=("joint", "joint+state", "dict"),
+                        help="observation (default: the policy's)")
+    parser.add_argument("--frame-stack", type=int, default=None, metavar="K",
+                        help="each unit's observation is its last K SMAC observations (default: the policy's)")
+    parser.add_argument("--n-steps", type=int, default=None,
+                        help="rollout length per env: num-envs x n-steps samples per update (default: the policy's)")
+    parser.add_argument("--batch-size", type=int, default=None,
+                        help="PPO minibatch size (default: the policy's)")
+    parser.add_argument("--epochs", type=int, default=None, help="PPO epochs per update (default: the policy's)")
+    parser.add_argument("--clip-range", type=float, default=None, help="PPO clip range (default: the policy's)")
     parser.add_argument("--lr", type=float, default=5e-4, help="learning rate (default 5e-4)")
     parser.add_argument("--ent-coef", type=float, default=0.01, help="entropy coefficient (default 0.01)")
     parser.add_argument("--ent-coef-final", type=float, default=None, metavar="COEF",
@@ -88,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         config = TrainConfig(
             map_name=args.map, opponent=args.opponent, timesteps=args.timesteps, num_envs=args.num_envs,
             seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
-            obs_mode=args.obs_mode or ("joint+state" if args.policy == "shared" else "joint"),
+            obs_mode=args.obs_mode, frame_stack=args.frame_stack, clip_range=args.clip_range,
             policy=args.policy, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.epochs,
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, ent_coef_final=args.ent_coef_final,
             reward=args.reward, net_arch=net_arch,

@@ -19,6 +19,7 @@ from smac_hard_gym.envs.joint_view import OBS_MODES, JointView
 from smac_hard_gym.envs.one_battle import RendersOneBattle
 from smac_hard_gym.smac.actions import ResetNeededError, validate_actions
 from smac_hard_gym.smac.features import SmacOptions
+from smac_hard_gym.smac.frame_stack import UnitFrames, check_frame_stack
 
 __all__ = ["SMACHardEnv", "JointView", "OBS_MODES", "INVALID_ACTION_POLICIES", "RENDER_FPS", "make_options",
            "check_invalid_action"]
@@ -28,6 +29,7 @@ INVALID_ACTION_POLICIES = ("noop", "raise")  # the first is the default
 RAISE_HINT = ("; invalid_action='raise' is set (for debugging): the default invalid_action='noop' "
               "(gymnasium.make(id, invalid_action='noop')) replaces unavailable actions by a legal one and counts them "
               "in info['invalid_actions']")
+_ONE = np.ones(1, dtype=bool)  # the single env's one battle, as a row mask for UnitFrames
 RENDER_FPS = 8  # frames per second when shown: 4x the Normal-speed game time of step_mul=8 loops per step
 
 
@@ -88,7 +90,9 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
         ``obs_mode="joint"`` (default): Box float32 ``(n_agents * obs_size,)``, every agent's SMAC observation
         (``docs/smac_interface.md`` §3), agent-major, in [-1, 1]. ``"joint+state"``: the same followed by SMAC's global
         state (§4). ``"dict"``: ``{"obs": (n_agents, obs_size), "state": (state_size,), "action_mask":
-        (n_agents, n_actions) int8}``.
+        (n_agents, n_actions) int8}``. ``frame_stack=k`` (default 1): each agent's observation is its last k SMAC
+        observations, newest first (``obs_size`` becomes k times SMAC's; zeros before the episode's first step), the
+        memory MAPPO's SMAC runs give a feed-forward policy (:mod:`~smac_hard_gym.smac.frame_stack`).
 
     Rewards
         SMAC's shaped reward (damage dealt, kills, win bonus), scaled so an episode's maximum is ``reward_scale_rate``
@@ -111,9 +115,9 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
     Arguments
         Keyword options, gymnasium-style, each passed by name to the core (hence more than a dozen parameters).
         ``map_name``; ``opponent`` (``"default"`` = the map's SMAC-HARD pool, ``"blackbox"``, ``"base"``, any script
-        name, a user script reference, a Script, or a list of them) and ``opponent_probs``; ``obs_mode``;
-        ``invalid_action`` (``"noop"``, the default, or ``"raise"``); ``render_mode`` (``"rgb_array"`` or ``"human"``);
-        ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a
+        name, a user script reference, a Script, or a list of them) and ``opponent_probs``; ``obs_mode`` and
+        ``frame_stack``; ``invalid_action`` (``"noop"``, the default, or ``"raise"``); ``render_mode``
+        (``"rgb_array"`` or ``"human"``); ``backend`` and ``backend_options``; ``step_mul``; ``options`` (a
         :class:`~smac_hard_gym.smac.features.SmacOptions` or dict) and any SMAC observation/reward option as a
         keyword (``reward_sparse=True``, ...);
         ``opponent_isolation`` (None, the default: a script loaded from a file or module runs in a child process,
@@ -132,8 +136,9 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
                  opponent_probs: Sequence[float] | None = None, obs_mode: str = "joint",
                  invalid_action: str = "noop", render_mode: str | None = None, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
-                 opponent_isolation: str | None = None, **smac_options: Any) -> None:
+                 opponent_isolation: str | None = None, frame_stack: int = 1, **smac_options: Any) -> None:
         check_invalid_action(invalid_action)
+        frame_stack = check_frame_stack(frame_stack)
         if obs_mode not in OBS_MODES:
             raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
         from smac_hard_gym.render import check_render_mode  # the renderer itself loads on the first render()
@@ -145,7 +150,9 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
                                   options=make_options(options, smac_options, keywords_of(SMACHardEnv.__init__)),
                                   backend_options=backend_options, opponent_isolation=opponent_isolation,
                                   encode_state=obs_mode != "joint")
-        self.view = JointView(self.core.features[RED], obs_mode, self.core.episode_limit)
+        feats = self.core.features[RED]
+        self.view = JointView(feats, obs_mode, self.core.episode_limit, frame_stack)
+        self._frames = UnitFrames(1, feats.n_agents, feats.obs_size, frame_stack) if frame_stack > 1 else None
         self.map_name = self.core.spec.name
         self.obs_mode = obs_mode
         self.n_agents, self.n_actions = self.view.n_agents, self.view.n_actions
@@ -165,6 +172,8 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
         self.core.reset(seed=seed)
         self._needs_reset = False
         avail, obs, state = self.core.encode(RED)
+        if self._frames is not None:
+            obs = self._frames.advance(_ONE, obs, restart=_ONE)
         return self._row(self.view.observation(avail, obs, state)), {
             "opponent": self.core.opponent_names()[0], "action_mask": self.view.masks(avail, np.int8)[0]}
 
@@ -175,7 +184,7 @@ class SMACHardEnv(RendersOneBattle, gym.Env):
         acts = validate_actions(action, (self.n_agents,), self.n_actions, "red")
         result = self.core.step(acts[None], replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT,
                                 checked=True)
-        step = self.view.translate(result)
+        step = self.view.translate(result, None if self._frames is None else self._frames.advance(_ONE, result.obs))
         terminated, truncated = bool(step.terminated[0]), bool(step.truncated[0])
         self._needs_reset = terminated or truncated
         values = step.info

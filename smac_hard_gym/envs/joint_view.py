@@ -15,6 +15,7 @@ from gymnasium import spaces
 
 from smac_hard_gym.engine.units import STATS, S
 from smac_hard_gym.smac.features import RED_WON, SideFeatures
+from smac_hard_gym.smac.frame_stack import check_frame_stack
 
 __all__ = ["JointView", "Transition", "OBS_MODES", "OBS_LOW"]
 
@@ -47,17 +48,20 @@ class JointView:
     ``obs_mode`` picks the observation: ``"joint"`` (every agent's SMAC observation, flattened agent-major),
     ``"joint+state"`` (that, then SMAC's global state) or ``"dict"`` (``obs`` (n_agents, obs_size), ``state``
     (state_size,) and ``action_mask`` (n_agents, n_actions) int8). ``episode_limit``: the step count at which an
-    episode is truncated.
+    episode is truncated. ``frame_stack``: each agent's observation is its last ``frame_stack`` SMAC observations
+    (:mod:`~smac_hard_gym.smac.frame_stack`; the env keeps them), so ``obs_size`` is that many times SMAC's.
     """
 
-    def __init__(self, feats: SideFeatures, obs_mode: str = "joint", episode_limit: int | None = None) -> None:
+    def __init__(self, feats: SideFeatures, obs_mode: str = "joint", episode_limit: int | None = None,
+                 frame_stack: int = 1) -> None:
         if obs_mode not in OBS_MODES:
             raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
         self.obs_mode = obs_mode
         self.needs_state = obs_mode != "joint"
         self.episode_limit = feats.episode_limit if episode_limit is None else int(episode_limit)
         self.n_agents, self.n_actions = feats.n_agents, feats.n_actions
-        self.obs_size, self.state_size = feats.obs_size, feats.state_size
+        self.frame_stack = check_frame_stack(frame_stack)
+        self.obs_size, self.state_size = feats.obs_size * self.frame_stack, feats.state_size
         self.mask_size = self.n_agents * self.n_actions
         self.action_space = spaces.MultiDiscrete(np.full(self.n_agents, self.n_actions, dtype=np.int64))
         joint = self.n_agents * self.obs_size
@@ -90,8 +94,9 @@ class JointView:
         # bool and int8 share a layout: a plain copy is several times faster than a conversion.
         return masks.view(dtype).copy() if dtype in _ONE_BYTE else masks.astype(dtype)
 
-    def translate(self, result: Any) -> Transition:
-        """A core :class:`~smac_hard_gym.envs.core.StepResult` as gymnasium's step values, per battle.
+    def translate(self, result: Any, obs: np.ndarray | None = None) -> Transition:
+        """A core :class:`~smac_hard_gym.envs.core.StepResult` as gymnasium's step values, per battle (``obs``: the
+        agents' observations to hand out instead of the result's, the stacked frames under ``frame_stack``).
 
         Truncated at the limit even when the battle also ended on that step, as gymnasium's ``TimeLimit`` says; a
         game the sc2 backend lost and restarted ended without a result: truncated, not terminated, and flagged.
@@ -101,5 +106,6 @@ class JointView:
         truncated = result.stepped & ((result.episode_step >= self.episode_limit) | restarted)
         info = {"battle_won": result.outcome == RED_WON, "dead_allies": result.dead_red,
                 "dead_enemies": result.dead_blue, "invalid_actions": result.replaced, "restarted": restarted}
-        return Transition(self.observation(result.avail, result.obs, result.state), result.reward[:, 0],
+        obs = result.obs if obs is None else obs
+        return Transition(self.observation(result.avail, obs, result.state), result.reward[:, 0],
                           terminated, truncated, info)

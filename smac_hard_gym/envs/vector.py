@@ -25,6 +25,7 @@ from smac_hard_gym.envs.gym_env import RAISE_HINT, RENDER_FPS, check_invalid_act
 from smac_hard_gym.envs.joint_view import OBS_MODES, JointView
 from smac_hard_gym.smac.actions import ResetNeededError
 from smac_hard_gym.smac.features import SmacOptions
+from smac_hard_gym.smac.frame_stack import UnitFrames, check_frame_stack
 
 __all__ = ["NativeVectorEnv", "parse_autoreset_mode", "AutoresetMode"]
 
@@ -60,8 +61,9 @@ class NativeVectorEnv(VectorEnv):
     ``opponent``, ``action_mask`` ((N, n_agents * n_actions) int8) and ``invalid_actions`` (the unavailable actions
     replaced, under ``invalid_action="noop"``, the default; ``"raise"`` raises instead, as the single env does).
     ``action_masks()`` returns the bool masks of the current observations, shape (N, n_agents * n_actions).
-    ``max_episode_steps`` shortens the map's episode limit (never lengthens it). ``render()`` draws battle
-    ``render_battles`` (an int), or a tiled grid of the listed battles (a list, or ``"all"``).
+    ``frame_stack``: as in the single env, per battle. ``max_episode_steps`` shortens the map's episode limit (never
+    lengthens it). ``render()`` draws battle ``render_battles`` (an int), or a tiled grid of the listed battles (a
+    list, or ``"all"``).
     """
 
     def __init__(self, map_name: str = "3m", num_envs: int = 1, *,
@@ -70,9 +72,10 @@ class NativeVectorEnv(VectorEnv):
                  invalid_action: str = "noop", render_mode: str | None = None,
                  render_battles: int | Sequence[int] | str = 0, backend: str = "native",
                  backend_options: dict | None = None, step_mul: int = 8, options: SmacOptions | dict | None = None,
-                 opponent_isolation: str | None = None, **smac_options: Any) -> None:
+                 opponent_isolation: str | None = None, frame_stack: int = 1, **smac_options: Any) -> None:
         """A public constructor with gymnasium-style keyword options (what ``gymnasium.make_vec`` passes through by
         name), hence the long list; SMAC's options may come as ``options`` or as keywords."""
+        frame_stack = check_frame_stack(frame_stack)
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
         check_invalid_action(invalid_action)
@@ -94,7 +97,10 @@ class NativeVectorEnv(VectorEnv):
                                   encode_state=obs_mode != "joint", episode_limit=max_episode_steps)
         self.map_name = self.core.spec.name
         self.episode_limit = self.core.episode_limit
-        self.view = JointView(self.core.features[RED], obs_mode, self.episode_limit)
+        feats = self.core.features[RED]
+        self.view = JointView(feats, obs_mode, self.episode_limit, frame_stack)
+        self._frames = (UnitFrames(self.num_envs, feats.n_agents, feats.obs_size, frame_stack) if frame_stack > 1
+                        else None)
         self.render_battles = self._check_render_battles(render_battles)
         self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": ["rgb_array", "human"],
                          "render_fps": RENDER_FPS}
@@ -128,6 +134,8 @@ class NativeVectorEnv(VectorEnv):
         self._reset_battles(rows, seeds)
         self._needs_reset = False
         avail, obs, state = self.core.encode(RED)
+        if self._frames is not None:
+            obs = self._frames.advance(rows, obs, restart=rows)
         return self.view.observation(avail, obs, state), self._info(np.zeros(self.num_envs, dtype=bool), rows, avail)
 
     def step(self, actions: Any, *, checked: bool = False
@@ -146,7 +154,8 @@ class NativeVectorEnv(VectorEnv):
                                    "disabled; reset them with reset(options={'reset_mask': mask}) before stepping")
         core, view = self.core, self.view
         result = core.step(actions, replace_invalid=self.invalid_action == "noop", hint=RAISE_HINT, checked=checked)
-        step = view.translate(result)
+        frames = self._frames
+        step = view.translate(result, None if frames is None else frames.advance(result.stepped, result.obs))
         terminated, truncated = step.terminated, step.truncated
         ended = terminated | truncated
         rewards = step.reward.astype(np.float64)
@@ -177,6 +186,8 @@ class NativeVectorEnv(VectorEnv):
         self._ended = ended if mode != AutoresetMode.SAME_STEP else np.zeros(self.num_envs, dtype=bool)
         if resets.any():
             avail, obs, state = core.encode(RED)
+            if frames is not None:
+                obs = frames.advance(resets, obs, restart=resets)
             observation = view.observation(avail, obs, state)
         else:
             avail, observation = result.avail, step.obs

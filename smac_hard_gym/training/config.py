@@ -11,7 +11,7 @@ import numpy as np
 
 from smac_hard_gym.training.protocol import TEST_SEED_BASE
 
-__all__ = ["TrainConfig", "POLICIES", "REWARDS"]
+__all__ = ["TrainConfig", "POLICIES", "REWARDS", "POLICY_DEFAULTS"]
 
 POLICIES = ("joint", "shared")  # train --policy
 # train --reward: SMAC's reward as the training battles give it. "positive": SMAC's default (reward_only_positive:
@@ -20,6 +20,17 @@ POLICIES = ("joint", "shared")  # train --policy
 # also pays for enemy regeneration and healing (what the SMAC-HARD paper's runs were paid). Test evaluations keep
 # smac-hard-gym's default, so test returns compare across runs.
 REWARDS = ("positive", "signed", "abs")
+
+# What each policy trains with unless told otherwise (train's defaults; docs/training_results.md measures them). The
+# joint MLP keeps the first sweep's PPO settings. The shared policy takes MAPPO's for SMAC, as the SMAC-HARD
+# repository's on-policy script for 3s_vs_5z runs it (8 threads x 400 steps in one minibatch, 15 epochs, clip 0.05,
+# 4 stacked frames): 64 battles x 50 steps, one minibatch (batch_size None: the whole rollout).
+POLICY_DEFAULTS: dict[str, dict[str, Any]] = {
+    "joint": {"obs_mode": "joint", "frame_stack": 1, "n_steps": 32, "batch_size": 512, "n_epochs": 10,
+              "clip_range": 0.2},
+    "shared": {"obs_mode": "joint+state", "frame_stack": 4, "n_steps": 50, "batch_size": None, "n_epochs": 15,
+               "clip_range": 0.05},
+}
 
 
 @dataclass
@@ -35,15 +46,17 @@ class TrainConfig:
     eval_every: int = 0  # env steps between evaluations; 0: a tenth of the run
     eval_episodes: int = 32
     eval_envs: int = 16
-    obs_mode: str = "joint"
     policy: str = "joint"  # "joint": the joint MLP (sb3_policy); "shared": the unit-shared MAPPO policy (sb3_shared)
-    n_steps: int = 32  # per env and rollout: num_envs * n_steps samples per update
-    batch_size: int = 512
-    n_epochs: int = 10
+    # None: the policy's default (POLICY_DEFAULTS), filled in when the config is made
+    obs_mode: str | None = None
+    frame_stack: int | None = None  # each unit's last k SMAC observations (the envs' frame_stack option)
+    n_steps: int | None = None  # per env and rollout: num_envs * n_steps samples per update
+    batch_size: int | None = None
+    n_epochs: int | None = None
     learning_rate: float = 5e-4
     gamma: float = 0.99
     gae_lambda: float = 0.95
-    clip_range: float = 0.2
+    clip_range: float | None = None
     ent_coef: float = 0.01
     # None: ent_coef throughout; a float: the entropy coefficient falls linearly from ent_coef at step 0 to this at
     # the last step (set before each update)
@@ -62,6 +75,19 @@ class TrainConfig:
     ray_actors: int = 2  # actors of num_envs / ray_actors battles each
 
     def __post_init__(self) -> None:
+        if self.policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        for name, value in POLICY_DEFAULTS[self.policy].items():
+            if getattr(self, name) is None:
+                setattr(self, name, value)
+        if self.batch_size is None and isinstance(self.n_steps, int) and isinstance(self.num_envs, int):
+            self.batch_size = self.num_envs * self.n_steps  # one minibatch: the whole rollout
+        from smac_hard_gym.smac.frame_stack import check_frame_stack
+
+        self.frame_stack = check_frame_stack(self.frame_stack)
+        if not isinstance(self.clip_range, (int, float)) or isinstance(self.clip_range, bool) \
+                or not 0 < self.clip_range < 1:
+            raise ValueError(f"clip_range must be a number in (0, 1), got {self.clip_range!r}")
         for name in ("timesteps", "num_envs", "eval_episodes", "eval_envs", "n_steps", "batch_size", "n_epochs",
                      "torch_threads", "env_threads"):
             value = getattr(self, name)
@@ -84,8 +110,6 @@ class TrainConfig:
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
         if self.reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
-        if self.policy not in POLICIES:
-            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.policy == "shared" and self.obs_mode == "dict":
             raise ValueError("the shared policy reads the joint view: use obs_mode 'joint+state' (or 'joint')")
         if self.league_every < 0:
@@ -135,7 +159,7 @@ class TrainConfig:
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of the envs this run trains and evaluates on."""
-        return {"map_name": self.map_name, "obs_mode": self.obs_mode}
+        return {"map_name": self.map_name, "obs_mode": self.obs_mode, "frame_stack": self.frame_stack}
 
     def train_env_kwargs(self) -> dict[str, Any]:
         """:meth:`env_kwargs` plus the training battles' reward options (evaluations use :meth:`env_kwargs`)."""
@@ -155,7 +179,9 @@ class TrainConfig:
             from smac_hard_gym.wrappers.sb3_shared import shared_policy_kwargs
 
             policy_kwargs = {"net_arch": {"pi": [64, 64], "vf": net_arch},
-                             **shared_policy_kwargs(self.map_name, self.obs_mode)}
+                             **shared_policy_kwargs(self.map_name, self.obs_mode, self.frame_stack)}
+        elif self.frame_stack > 1:
+            policy_kwargs["frame_stack"] = self.frame_stack  # recorded with the model for opponents and evaluations
         return {"n_steps": self.n_steps, "batch_size": self.batch_size, "n_epochs": self.n_epochs,
                 "learning_rate": self.learning_rate, "gamma": self.gamma, "gae_lambda": self.gae_lambda,
                 "clip_range": self.clip_range, "ent_coef": self.ent_coef, "seed": self.seed, "device": "cpu",

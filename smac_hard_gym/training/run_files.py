@@ -102,6 +102,8 @@ def load_run_config(model_path: str | Path) -> TrainConfig | None:
     if not isinstance(data, dict):
         raise ValueError(f"{path}: malformed run config (a JSON object of TrainConfig fields expected, got "
                          f"{type(data).__name__})")
+    # Runs saved before frame stacking existed trained on single frames (their other settings are all saved).
+    data.setdefault("frame_stack", 1)
     known = {f.name for f in fields(TrainConfig)}
     for key in ("map_name", "opponent", "obs_mode", "policy", "out", "tensorboard", "league_weighting"):
         if key in data and not isinstance(data[key], str):
