@@ -141,6 +141,7 @@ def test_a_model_trained_on_stacked_frames_records_them_and_plays_as_an_opponent
     pytest.importorskip("sb3_contrib")
     from smac_hard_gym.opponents.policy import PolicyScript
     from smac_hard_gym.training import TrainConfig
+    from smac_hard_gym.training.league import snapshot
     from smac_hard_gym.training.loop import train
     from smac_hard_gym.training.run_files import load_model, load_run_config
 
@@ -155,8 +156,30 @@ def test_a_model_trained_on_stacked_frames_records_them_and_plays_as_an_opponent
         assert load_run_config(out / "model.zip").env_kwargs()["frame_stack"] == 3
         script = PolicyScript.load(out / "model.zip")
         assert script.frame_stack == 3
+        assert snapshot(model, "league member").frame_stack == 3  # a league snapshot reads the frames too
         env = NativeVectorEnv("3m", 2, autoreset_mode="SameStep", opponent=script)
         env.reset(seed=0)
         for _ in range(5):
             env.step(np.ones((2, N), dtype=np.int64))
         env.close()
+
+
+def test_subprocess_workers_stack_frames_as_the_native_env_does():
+    from smac_hard_gym.envs.subproc import make_subproc_env
+
+    kwargs = {"opponent": "smac", "obs_mode": "joint+state", "frame_stack": 2, "max_episode_steps": 10}
+    native = NativeVectorEnv("3m", 4, autoreset_mode="SameStep", **kwargs)
+    workers = make_subproc_env("3m", 2, 2, autoreset_mode="SameStep", **kwargs)
+    try:
+        assert workers.single_observation_space == native.single_observation_space
+        np.testing.assert_array_equal(workers.reset(seed=4)[0], native.reset(seed=4)[0])
+        rng = np.random.default_rng(2)
+        for _ in range(25):  # episodes of 10 steps: resets crossed
+            actions = _random_legal(native.action_masks(), rng)
+            got, want = workers.step(actions), native.step(actions)
+            np.testing.assert_array_equal(got[0], want[0])
+            for b in np.flatnonzero(want[2] | want[3]):
+                np.testing.assert_array_equal(got[4]["final_obs"][b], want[4]["final_obs"][b])
+    finally:
+        workers.close()
+        native.close()

@@ -101,11 +101,13 @@ def test_same_seeds_give_the_episodes_of_the_subprocess_env(mode):
         sub_env.close()
 
 
-def test_dict_observations_and_reset_masks_match_too():
-    kwargs = {"opponent": "base", "obs_mode": "dict", "max_episode_steps": 8}
+def test_dict_observations_stacked_frames_and_reset_masks_match_too():
+    kwargs = {"opponent": "base", "obs_mode": "dict", "max_episode_steps": 8, "frame_stack": 3}
     ray_env = make_ray_vec("2s3z", 2, 2, autoreset_mode="Disabled", **kwargs)
     sub_env = make_subproc_env("2s3z", 2, 2, autoreset_mode="Disabled", **kwargs)
     try:
+        one_frame = NativeVectorEnv("2s3z", 1, obs_mode="dict").single_observation_space["obs"].shape
+        assert ray_env.single_observation_space["obs"].shape == (one_frame[0], 3 * one_frame[1])
         for got, want in zip(ray_env.reset(seed=1), sub_env.reset(seed=1), strict=True):
             assert_same(got, want)
         for _ in range(8):
