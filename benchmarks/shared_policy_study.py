@@ -1,21 +1,24 @@
 """Joint MLP against the unit-shared MAPPO-style policy (wrappers/sb3_shared.py) and its ablations, for a long run.
 
-Trains MaskablePPO with each variant on the given maps and seeds for the given steps (at ``smac-hard-gym train``'s
-PPO settings: 64 battles, 32 steps per rollout, minibatches of 512, 10 epochs, lr 5e-4, ent 0.01), then plays a
-deterministic test evaluation against the opponent "smac" (SC2's built-in AI script) on the test battles
-``smac-hard-gym eval`` plays, and writes ``study.json`` (one row per run) and ``study.md`` (per map and variant: mean
-final test win rate over seeds, its spread, and training steps/s) to ``--out``.
+Trains MaskablePPO with each variant on the given maps and seeds for the given steps (each at ``smac-hard-gym
+train``'s defaults for its policy, ``smac_hard_gym.training.config.POLICY_DEFAULTS``, unless the variant says
+otherwise), then plays a deterministic test evaluation against the opponent "smac" (SC2's built-in AI script) on the
+test battles ``smac-hard-gym eval`` plays, and writes ``study.json`` (one row per run) and ``study.md`` (per map and
+variant: mean final test win rate over seeds, its spread, and training steps/s) to ``--out``.
 
 Variants (``--variants``, comma-separated):
 
-- ``joint``: the joint MLP ``train`` uses today (MaskableJointPolicy, obs_mode "joint", 128x128 actor and critic);
-- ``shared``: SharedUnitPolicy, obs_mode "joint+state": shared 64x64 actor on [obs, unit id, last action],
-  128x128 critic on the global state, running value normalisation;
+- ``joint``: the joint MLP (MaskableJointPolicy, obs_mode "joint", 128x128 actor and critic, the first sweep's PPO);
+- ``shared``: ``train --policy shared``: SharedUnitPolicy on the "joint+state" view with 4 stacked frames, shared
+  64x64 actor on [frames, unit id, last action], 128x128 critic on the global state, running value normalisation,
+  MAPPO's PPO settings (64 x 50 steps in one minibatch, 15 epochs, clip 0.05);
 - ``shared-no-id``: without the one-hot unit id;
 - ``shared-no-last-action``: without the last-action input;
 - ``shared-no-state``: decentralised critic (shared per-unit critic on [obs, id], averaged over living units);
 - ``shared-no-vnorm``: without value normalisation;
-- ``shared-popart``: PopArt (value normalisation that rescales the value head to keep its outputs).
+- ``shared-popart``: PopArt (value normalisation that rescales the value head to keep its outputs);
+- ``shared-1-frame``: one frame (no memory);
+- ``shared-sb3-ppo``: the joint MLP's PPO settings (64 x 32 steps, minibatches of 512, 10 epochs, clip 0.2).
 
 ``--probe``: no training; scripted learner-side policies on 2s_vs_1sc against "smac", written in the learner's own
 observations and actions (what PPO sees and can do), to measure which behaviours the map rewards (win rate, return,
@@ -53,40 +56,52 @@ import time
 from pathlib import Path
 from typing import Any
 
+# policy: train --policy; config: TrainConfig fields that differ from the policy's defaults; kwargs: policy keywords
 VARIANTS: dict[str, dict[str, Any]] = {
-    "joint": {"policy": "joint", "obs_mode": "joint", "kwargs": {}},
-    "shared": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {}},
-    "shared-no-id": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"unit_ids": False}},
-    "shared-no-last-action": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"last_action": False}},
-    "shared-no-state": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"critic": "unit"}},
-    "shared-no-vnorm": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"value_norm": "none"}},
-    "shared-popart": {"policy": "shared", "obs_mode": "joint+state", "kwargs": {"value_norm": "popart"}},
+    "joint": {"policy": "joint", "config": {}, "kwargs": {}},
+    "shared": {"policy": "shared", "config": {}, "kwargs": {}},
+    "shared-no-id": {"policy": "shared", "config": {}, "kwargs": {"unit_ids": False}},
+    "shared-no-last-action": {"policy": "shared", "config": {}, "kwargs": {"last_action": False}},
+    "shared-no-state": {"policy": "shared", "config": {}, "kwargs": {"critic": "unit"}},
+    "shared-no-vnorm": {"policy": "shared", "config": {}, "kwargs": {"value_norm": "none"}},
+    "shared-popart": {"policy": "shared", "config": {}, "kwargs": {"value_norm": "popart"}},
+    "shared-1-frame": {"policy": "shared", "config": {"frame_stack": 1}, "kwargs": {}},
+    "shared-sb3-ppo": {"policy": "shared", "config": {"n_steps": 32, "batch_size": 512, "n_epochs": 10,
+                                                       "clip_range": 0.2}, "kwargs": {}},
 }
 DEFAULT_VARIANTS = "joint,shared,shared-no-id,shared-no-state,shared-no-vnorm"
 
 
+def variant_config(variant: str, map_name: str, seed: int, num_envs: int) -> Any:
+    """The TrainConfig a variant trains with (its policy's defaults, then the variant's changes)."""
+    from smac_hard_gym.training import TrainConfig
+
+    spec = VARIANTS[variant]
+    return TrainConfig(map_name=map_name, seed=seed, num_envs=num_envs, policy=spec["policy"], **spec["config"])
+
+
 def build_model(variant: str, map_name: str, seed: int, num_envs: int, opponent: str) -> Any:
-    """MaskablePPO for ``variant`` at ``train``'s settings, on a fresh native vector env."""
+    """MaskablePPO for ``variant`` (see :func:`variant_config`), on a fresh native vector env."""
     from sb3_contrib import MaskablePPO
     from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecMonitor
 
     from smac_hard_gym.envs.vector import NativeVectorEnv
-    from smac_hard_gym.training import TrainConfig
     from smac_hard_gym.wrappers.sb3 import SB3VecEnv
     from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
     from smac_hard_gym.wrappers.sb3_policy import MaskableJointPolicy
-    from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy, SharedUnitRolloutBuffer, shared_policy_kwargs
+    from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy, SharedUnitRolloutBuffer
 
     spec = VARIANTS[variant]
-    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(map_name, num_envs, autoreset_mode="SameStep", opponent=opponent,
-                                                obs_mode=spec["obs_mode"])))
-    ppo = TrainConfig(map_name=map_name, seed=seed, num_envs=num_envs, obs_mode=spec["obs_mode"]).ppo_kwargs()
+    config = variant_config(variant, map_name, seed, num_envs)
+    venv = VecMonitor(SB3VecEnv(NativeVectorEnv(num_envs=num_envs, autoreset_mode="SameStep", opponent=opponent,
+                                                **config.env_kwargs())))
+    ppo = config.ppo_kwargs()
     if spec["policy"] == "joint":
         policy, buffer = MaskableJointPolicy, MaskableJointRolloutBuffer
     else:
         policy, buffer = SharedUnitPolicy, SharedUnitRolloutBuffer
-        ppo["policy_kwargs"] = {**shared_policy_kwargs(venv), **spec["kwargs"]}
+        ppo["policy_kwargs"] = {**ppo["policy_kwargs"], **spec["kwargs"]}
     model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, **ppo)
     model.set_logger(Logger(folder=None, output_formats=[]))
     return model
@@ -101,8 +116,8 @@ def test_win_rate(model: Any, variant: str, map_name: str, episodes: int, eval_e
     from smac_hard_gym.envs.vector import NativeVectorEnv
     from smac_hard_gym.training import TEST_SEED_BASE, evaluate, win_rate_spread
 
-    env = NativeVectorEnv(map_name, min(eval_envs, episodes), autoreset_mode="SameStep", opponent="smac",
-                          obs_mode=VARIANTS[variant]["obs_mode"])
+    env = NativeVectorEnv(num_envs=min(eval_envs, episodes), autoreset_mode="SameStep", opponent="smac",
+                          **variant_config(variant, map_name, 0, 1).env_kwargs())
     try:
         result = evaluate(model, env, episodes, seed=TEST_SEED_BASE)
     finally:
@@ -115,7 +130,7 @@ def test_win_rate(model: Any, variant: str, map_name: str, episodes: int, eval_e
 def warm_up(map_name: str, variants: list[str], num_envs: int, opponent: str) -> None:
     """One untimed rollout and update per policy kind and obs mode: the engine's and torch's first calls (kernel
     compilation, allocations) stay out of every variant's steps/s."""
-    kinds = {(VARIANTS[v]["policy"], VARIANTS[v]["obs_mode"]): v for v in variants}
+    kinds = {(VARIANTS[v]["policy"], tuple(sorted(VARIANTS[v]["config"].items()))): v for v in variants}
     for variant in kinds.values():
         model = build_model(variant, map_name, 0, num_envs, opponent)
         model.learn(model.n_steps * num_envs)
