@@ -92,7 +92,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                       "(needs the [train] extra)")
     tr.add_argument("--map", type=comma_names, default=["8m"], help="map name, or comma-separated names (default 8m)")
     tr.add_argument("--timesteps", type=positive_int, default=8192,
-                    help="env steps per timed round, rounded up to whole rollouts of 2048 (default 8192)")
+                    help="env steps per timed round, rounded up to whole rollouts (2048 steps for the joint policy, "
+                         "3200 for the shared one; default 8192)")
     tr.add_argument("--rounds", type=positive_int, default=3, help="timed rounds per variant; the median is reported "
                                                                "(default 3)")
     tr.add_argument("--json", default=None, metavar="PATH", help="write results as JSON")
