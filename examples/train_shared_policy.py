@@ -22,12 +22,12 @@ import argparse
 
 import gymnasium as gym
 import numba
-import numpy as np
 import torch
 from sb3_contrib import MaskablePPO
 from stable_baselines3.common.vec_env import VecMonitor
 
 import smac_hard_gym  # noqa: F401  (registers the SMACHard-* ids)
+from smac_hard_gym.training import TEST_SEED_BASE, evaluate
 from smac_hard_gym.wrappers.sb3 import SB3VecEnv
 from smac_hard_gym.wrappers.sb3_shared import SharedUnitPolicy, SharedUnitRolloutBuffer, shared_policy_kwargs
 
@@ -35,17 +35,12 @@ ENV_OPTIONS = {"opponent": "smac", "obs_mode": "joint+state", "frame_stack": 4}
 
 
 def win_rate(model: MaskablePPO, map_name: str, episodes: int = 32) -> float:
-    """Masked, deterministic win rate over ``episodes`` finished battles (same env options as training)."""
+    """Masked, deterministic win rate on ``smac-hard-gym eval``'s test battles (same env options as training)."""
     env = gym.make_vec(f"SMACHard-{map_name}-v0", num_envs=16, autoreset_mode="SameStep", **ENV_OPTIONS)
-    obs, _ = env.reset(seed=123)
-    results: list[bool] = []
-    while len(results) < episodes:
-        actions, _ = model.predict(obs, action_masks=env.action_masks(), deterministic=True)
-        obs, _, terminated, truncated, infos = env.step(actions)
-        done = terminated | truncated
-        results += infos["final_info"]["battle_won"][done].tolist() if done.any() else []
-    env.close()
-    return float(np.mean(results[:episodes]))
+    try:
+        return evaluate(model, env, episodes, seed=TEST_SEED_BASE).win_rate
+    finally:
+        env.close()
 
 
 def main(argv: list[str] | None = None) -> None:
