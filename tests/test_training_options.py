@@ -128,6 +128,7 @@ def test_the_shared_policy_defaults_to_mappos_smac_settings_and_overrides_are_ke
     assert (shared.obs_mode, shared.frame_stack, shared.n_epochs, shared.clip_range) == ("joint+state", 4, 15, 0.05)
     assert shared.batch_size == 64 * shared.n_steps  # one minibatch: the whole rollout
     assert TrainConfig(policy="shared", num_envs=8, n_steps=400).batch_size == 3200  # MAPPO's own rollout
+    assert TrainConfig(policy="shared", num_envs=np.int64(8), n_steps=np.int64(400)).batch_size == 3200
     joint = TrainConfig()  # the first sweep's settings
     assert (joint.obs_mode, joint.frame_stack, joint.n_steps, joint.batch_size, joint.n_epochs, joint.clip_range) \
         == ("joint", 1, 32, 512, 10, 0.2)

@@ -80,7 +80,8 @@ class TrainConfig:
         for name, value in POLICY_DEFAULTS[self.policy].items():
             if getattr(self, name) is None:
                 setattr(self, name, value)
-        if self.batch_size is None and isinstance(self.n_steps, int) and isinstance(self.num_envs, int):
+        if self.batch_size is None and isinstance(self.n_steps, (int, np.integer)) \
+                and isinstance(self.num_envs, (int, np.integer)):
             self.batch_size = self.num_envs * self.n_steps  # one minibatch: the whole rollout
         from smac_hard_gym.smac.frame_stack import check_frame_stack
 
