@@ -45,7 +45,7 @@ networks are MAPPO's (Yu et al. 2022, "The Surprising Effectiveness of PPO in Co
 - **memory** (``frame_stack``): SMAC's observation has no weapon cooldown, so a unit that sees one step cannot tell
   when it can fire again, which kiting needs. With the env's ``frame_stack=k`` (:mod:`~smac_hard_gym.smac.frame_stack`)
   a unit's block is its last k observations, newest first, and the actor reads them all (``unit_obs_size`` = k times
-  SMAC's); MAPPO's SMAC runs use a recurrent core, and stacked frames on the kiting maps.
+  SMAC's); MAPPO's SMAC runs use a recurrent core, or stacked frames (3s_vs_5z).
 - **dead units**: a dead unit's only legal action is no-op, so its masked logits give log-probability 0 and entropy
   0 exactly: it adds nothing to the PPO ratio, the entropy bonus or the actor's gradient (tested). The training pass
   therefore runs the actor on the living units' rows only (a unit is living when an action other than no-op is

@@ -1,8 +1,8 @@
 """Each agent's last ``k`` SMAC observations: the memory a feed-forward policy gets from stacked frames.
 
 SMAC's observation has no weapon cooldown, so a policy that sees one step cannot tell when its unit can fire again;
-MAPPO's SMAC runs give the policy memory with a recurrent core, and on the kiting maps also stack frames (the SMAC-HARD
-repository's MAPPO script for 3s_vs_5z: ``--use_stacked_frames --stacked_frames 4``). :class:`UnitFrames` keeps, per
+MAPPO's SMAC runs give the policy memory with a recurrent core, or with stacked frames (the SMAC-HARD repository's
+feed-forward MAPPO script for 3s_vs_5z: ``--use_stacked_frames --stacked_frames 4``). :class:`UnitFrames` keeps, per
 battle, every agent's last ``k`` observations; the envs' ``frame_stack`` option hands them out agent-major, newest
 first: agent i's block is ``[obs_i(t), obs_i(t-1), ..., obs_i(t-k+1)]``, so a policy that reads one block per agent
 (``SharedUnitPolicy``) sees ``k * obs_size`` values per agent. Frames before an episode's first step are zeros, as
