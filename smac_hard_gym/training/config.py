@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from smac_hard_gym.smac.frame_stack import check_frame_stack
 from smac_hard_gym.training.protocol import TEST_SEED_BASE
 
 __all__ = ["TrainConfig", "POLICIES", "REWARDS", "POLICY_DEFAULTS"]
@@ -83,8 +84,6 @@ class TrainConfig:
         if self.batch_size is None and isinstance(self.n_steps, (int, np.integer)) \
                 and isinstance(self.num_envs, (int, np.integer)):
             self.batch_size = self.num_envs * self.n_steps  # one minibatch: the whole rollout
-        from smac_hard_gym.smac.frame_stack import check_frame_stack
-
         self.frame_stack = check_frame_stack(self.frame_stack)
         if not isinstance(self.clip_range, (int, float)) or isinstance(self.clip_range, bool) \
                 or not 0 < self.clip_range < 1:
