@@ -185,6 +185,78 @@ def test_joint_policies_and_buffers_train_the_same_weights_as_sb3_contribs(obs_m
     assert not all(torch.equal(a, b) for a, b in zip(weights[0], _fresh_weights(stock, obs_mode), strict=True))
 
 
+
+def _filled_buffers(n_steps, n_envs, seed):
+    # sb3-contrib's buffer and ours over one 3m rollout of random numbers (3 units x 9 actions, 30 features)
+    from sb3_contrib.common.maskable.buffers import MaskableRolloutBuffer
+
+    from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
+
+    obs_space = gym.spaces.Box(-1, 1, (30,), np.float32)
+    act_space = gym.spaces.MultiDiscrete([9, 9, 9])
+    buffers = [cls(n_steps, obs_space, act_space, n_envs=n_envs) for cls in (MaskableRolloutBuffer,
+                                                                                MaskableJointRolloutBuffer)]
+    rng = np.random.default_rng(seed)
+    for _ in range(n_steps):
+        step = dict(obs=rng.standard_normal((n_envs, 30)).astype(np.float32),
+                    action=rng.integers(0, 9, (n_envs, 3)), reward=rng.standard_normal(n_envs),
+                    episode_start=rng.random(n_envs) < 0.1, value=torch.randn(n_envs, 1),
+                    log_prob=torch.randn(n_envs), action_masks=rng.random((n_envs, 27)) < 0.7)
+        for buffer in buffers:
+            buffer.add(**step)
+    last = torch.randn(n_envs, 1)
+    for buffer in buffers:
+        buffer.compute_returns_and_advantage(last, np.zeros(n_envs, dtype=bool))
+    return buffers
+
+
+@pytest.mark.parametrize("batch_size", [None, 48, 1000])
+def test_a_whole_rollout_minibatch_holds_sb3s_samples_in_rollout_order(batch_size):
+    # 8 steps x 6 battles = 48 samples: None, 48 and 1000 are one minibatch of all of them; SB3 draws them in a
+    # permutation of the global numpy RNG, ours in the rollout's own order (battle-major, as SB3 flattens), once.
+    stock, ours = _filled_buffers(8, 6, seed=1)
+    np.random.seed(5)
+    permutation = np.random.permutation(48)
+    np.random.seed(5)
+    [sb3] = list(stock.get(batch_size))
+    first_epoch, second_epoch = list(ours.get(batch_size)), list(ours.get(batch_size))
+    assert len(first_epoch) == 1 and second_epoch[0] is first_epoch[0]  # built once per update
+    whole = first_epoch[0]
+    for name in whole._fields:
+        assert torch.equal(getattr(whole, name)[permutation], getattr(sb3, name)), name
+    ours.reset()  # a new rollout: the old samples are gone
+    assert ours._whole is None
+
+
+def test_smaller_minibatches_are_sb3s_own():
+    stock, ours = _filled_buffers(8, 6, seed=2)
+    batches = []
+    for buffer in (stock, ours):
+        np.random.seed(9)
+        batches.append(list(buffer.get(16)))
+    assert len(batches[1]) == 3
+    for a, b in zip(*batches, strict=True):
+        assert all(torch.equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+def test_one_minibatch_training_agrees_with_sb3_contribs_to_float_rounding():
+    # The same losses summed in another order: equal weights up to rounding, after 4 updates of 3 epochs.
+    from sb3_contrib.common.maskable.buffers import MaskableRolloutBuffer
+
+    from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
+
+    weights = []
+    for buffer in (MaskableRolloutBuffer, MaskableJointRolloutBuffer):
+        venv = VecMonitor(SB3VecEnv(NativeVectorEnv("3m", 4, autoreset_mode="SameStep", opponent="smac")))
+        model = MaskablePPO("MlpPolicy", venv, n_steps=64, batch_size=None, n_epochs=3, seed=7, device="cpu",
+                            rollout_buffer_class=buffer)
+        model.learn(1024)
+        weights.append([p.detach().clone() for p in model.policy.parameters()])
+        venv.close()
+    assert all(torch.allclose(a, b, rtol=0, atol=1e-5) for a, b in zip(*weights, strict=True))
+    assert not all(torch.allclose(a, b, rtol=0, atol=1e-5)
+                   for a, b in zip(weights[0], _fresh_weights("MlpPolicy", "joint"), strict=True))
+
 def _fresh_weights(policy, obs_mode):
     venv = SB3VecEnv(NativeVectorEnv("3m", 4, autoreset_mode="SameStep", opponent="smac", obs_mode=obs_mode))
     model = MaskablePPO(policy, venv, n_steps=64, batch_size=128, seed=7, device="cpu")
