@@ -9,16 +9,19 @@ variant: mean final test win rate over seeds, its spread, and training steps/s) 
 Variants (``--variants``, comma-separated):
 
 - ``joint``: the joint MLP (MaskableJointPolicy, obs_mode "joint", 128x128 actor and critic, the first sweep's PPO);
-- ``shared``: ``train --policy shared``: SharedUnitPolicy on the "joint+state" view with 4 stacked frames, shared
-  64x64 actor on [frames, unit id, last action], 128x128 critic on the global state, running value normalisation,
-  MAPPO's PPO settings (64 x 50 steps in one minibatch, 15 epochs, clip 0.05);
+- ``shared``: ``train --policy shared``: SharedUnitPolicy on the "joint+state" view, shared 64x64 actor on
+  [frames, unit id, last action], 128x128 critic on the global state, running value normalisation, MAPPO's PPO
+  settings for the map (64 x 50 steps; epochs, clip range, minibatches and memory (4 frames or 1) from MAPPO's
+  launch script for the map, ``smac_hard_gym.training.mappo_settings``);
 - ``shared-no-id``: without the one-hot unit id;
 - ``shared-no-last-action``: without the last-action input;
 - ``shared-no-state``: decentralised critic (shared per-unit critic on [obs, id], averaged over living units);
 - ``shared-no-vnorm``: without value normalisation;
 - ``shared-popart``: PopArt (value normalisation that rescales the value head to keep its outputs);
 - ``shared-1-frame``: one frame (no memory);
-- ``shared-sb3-ppo``: the joint MLP's PPO settings (64 x 32 steps, minibatches of 512, 10 epochs, clip 0.2).
+- ``shared-sb3-ppo``: the joint MLP's PPO settings (64 x 32 steps, minibatches of 512, 10 epochs, clip 0.2);
+- ``shared-shuffled-buffer``: ``shared`` with sb3-contrib's own whole-rollout minibatch (the rollout gathered in a
+  new random order for every epoch) instead of ours (built once per update); for ``--speed``.
 
 ``--probe``: no training; scripted learner-side policies on 2s_vs_1sc against "smac", written in the learner's own
 observations and actions (what PPO sees and can do), to measure which behaviours the map rewards (win rate, return,
@@ -68,6 +71,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "shared-1-frame": {"policy": "shared", "config": {"frame_stack": 1}, "kwargs": {}},
     "shared-sb3-ppo": {"policy": "shared", "config": {"n_steps": 32, "batch_size": 512, "n_epochs": 10,
                                                        "clip_range": 0.2}, "kwargs": {}},
+    "shared-shuffled-buffer": {"policy": "shared", "config": {}, "kwargs": {}, "buffer": "sb3"},
 }
 DEFAULT_VARIANTS = "joint,shared,shared-no-id,shared-no-state,shared-no-vnorm"
 
@@ -102,6 +106,10 @@ def build_model(variant: str, map_name: str, seed: int, num_envs: int, opponent:
     else:
         policy, buffer = SharedUnitPolicy, SharedUnitRolloutBuffer
         ppo["policy_kwargs"] = {**ppo["policy_kwargs"], **spec["kwargs"]}
+        if spec.get("buffer") == "sb3":
+            from sb3_contrib.common.maskable.buffers import MaskableRolloutBuffer
+
+            buffer = type("ShuffledSharedBuffer", (SharedUnitRolloutBuffer,), {"get": MaskableRolloutBuffer.get})
     model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, **ppo)
     model.set_logger(Logger(folder=None, output_formats=[]))
     return model

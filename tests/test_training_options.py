@@ -121,19 +121,47 @@ def test_every_update_uses_the_scheduled_entropy_coefficient(tmp_path, monkeypat
     assert json.loads((out / "config.json").read_text())["ent_coef_final"] == final
 
 
-def test_the_shared_policy_defaults_to_mappos_smac_settings_and_overrides_are_kept():
-    """SMAC-HARD's on-policy MAPPO script for 3s_vs_5z: --n_rollout_threads 8 --episode_length 400 --num_mini_batch 1
-    --ppo_epoch 15 --clip_param 0.05 --use_stacked_frames --stacked_frames 4."""
-    shared = TrainConfig(policy="shared", num_envs=64)
-    assert (shared.obs_mode, shared.frame_stack, shared.n_epochs, shared.clip_range) == ("joint+state", 4, 15, 0.05)
-    assert shared.batch_size == 64 * shared.n_steps  # one minibatch: the whole rollout
-    assert TrainConfig(policy="shared", num_envs=8, n_steps=400).batch_size == 3200  # MAPPO's own rollout
-    assert TrainConfig(policy="shared", num_envs=np.int64(8), n_steps=np.int64(400)).batch_size == 3200
-    joint = TrainConfig()  # the first sweep's settings
+# MAPPO's launch scripts (marlbenchmark/on-policy de66d7a, onpolicy/scripts/train_smac_scripts/train_smac_<map>.sh;
+# every one runs --n_rollout_threads 8 --episode_length 400): algo, --ppo_epoch, --clip_param (config default 0.2),
+# --num_mini_batch, stacked frames. rmappo is the recurrent actor; mappo without stacking has no memory.
+MAPPO_SCRIPTS = {  # map: (epochs, clip, minibatches, frames our shared policy stands in for its memory with)
+    "3s_vs_5z": (15, 0.05, 1, 4),  # mappo --ppo_epoch 15 --clip_param 0.05 --use_stacked_frames --stacked_frames 4
+    "27m_vs_30m": (5, 0.2, 1, 4),  # rmappo --ppo_epoch 5
+    "MMM2": (5, 0.2, 2, 4),  # rmappo --num_mini_batch 2 --ppo_epoch 5 --gain 1
+    "corridor": (5, 0.2, 1, 1),  # mappo --ppo_epoch 5
+    "25m": (10, 0.2, 1, 4),  # rmappo --ppo_epoch 10
+    "5m_vs_6m": (10, 0.05, 1, 4),  # rmappo --ppo_epoch 10 --clip_param 0.05
+    "2s_vs_1sc": (15, 0.2, 1, 4),  # rmappo --ppo_epoch 15
+    "2s3z": (15, 0.2, 1, 4),  # no script: config.py's defaults (ppo_epoch 15, clip_param 0.2, num_mini_batch 1)
+}
+
+
+@pytest.mark.parametrize("map_name", sorted(MAPPO_SCRIPTS))
+def test_the_shared_policy_defaults_to_mappos_settings_for_the_map(map_name):
+    epochs, clip, minibatches, frames = MAPPO_SCRIPTS[map_name]
+    shared = TrainConfig(map_name=map_name, policy="shared", num_envs=64)
+    assert (shared.obs_mode, shared.n_steps) == ("joint+state", 50)  # 64 x 50 = MAPPO's 8 x 400 samples
+    assert (shared.n_epochs, shared.clip_range, shared.frame_stack) == (epochs, clip, frames)
+    assert shared.batch_size == 3200 // minibatches
+    assert TrainConfig(map_name=map_name, policy="shared", num_envs=8, n_steps=400).batch_size == 3200 // minibatches
+    assert TrainConfig(map_name=map_name, policy="shared", num_envs=np.int64(8),
+                       n_steps=np.int64(400)).batch_size == 3200 // minibatches
+
+
+def test_mappos_table_names_every_map_with_a_script_and_only_known_maps():
+    from smac_hard_gym.maps import list_maps
+    from smac_hard_gym.training.mappo_settings import MAPPO_SMAC
+
+    assert set(MAPPO_SMAC) <= set(list_maps())
+    assert set(list_maps()) - set(MAPPO_SMAC) == {"2s3z"}  # on-policy has 22 SMAC scripts; 2s3z has none
+
+
+def test_the_joint_policy_keeps_the_first_sweeps_settings_and_overrides_are_kept():
+    joint = TrainConfig(map_name="27m_vs_30m")  # the first sweep's settings, on every map
     assert (joint.obs_mode, joint.frame_stack, joint.n_steps, joint.batch_size, joint.n_epochs, joint.clip_range) \
         == ("joint", 1, 32, 512, 10, 0.2)
-    mine = TrainConfig(policy="shared", frame_stack=1, n_epochs=4, clip_range=0.2, batch_size=256)
-    assert (mine.frame_stack, mine.n_epochs, mine.clip_range, mine.batch_size) == (1, 4, 0.2, 256)
+    mine = TrainConfig(map_name="MMM2", policy="shared", frame_stack=1, n_epochs=4, clip_range=0.1, batch_size=256)
+    assert (mine.frame_stack, mine.n_epochs, mine.clip_range, mine.batch_size) == (1, 4, 0.1, 256)
     for bad in (0, 1.0, -0.1, True):
         with pytest.raises(ValueError, match="clip_range"):
             TrainConfig(clip_range=bad)

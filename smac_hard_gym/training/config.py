@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from smac_hard_gym.smac.frame_stack import check_frame_stack
+from smac_hard_gym.training.mappo_settings import shared_map_defaults
 from smac_hard_gym.training.protocol import TEST_SEED_BASE
 
 __all__ = ["TrainConfig", "POLICIES", "REWARDS", "POLICY_DEFAULTS"]
@@ -23,14 +24,13 @@ POLICIES = ("joint", "shared")  # train --policy
 REWARDS = ("positive", "signed", "abs")
 
 # What each policy trains with unless told otherwise (train's defaults; docs/training_results.md measures them). The
-# joint MLP keeps the first sweep's PPO settings. The shared policy takes MAPPO's for SMAC, as the SMAC-HARD
-# repository's on-policy script for 3s_vs_5z runs it (8 threads x 400 steps in one minibatch, 15 epochs, clip 0.05,
-# 4 stacked frames): 64 battles x 50 steps, one minibatch (batch_size None: the whole rollout).
+# joint MLP keeps the first sweep's PPO settings. The shared policy takes MAPPO's for SMAC: 64 battles x 50 steps
+# (MAPPO's 8 threads x 400), and per map the epochs, clip range, minibatches and memory MAPPO's launch script for
+# that map uses (mappo_settings.py); batch_size None: the rollout split into the map's minibatches.
 POLICY_DEFAULTS: dict[str, dict[str, Any]] = {
     "joint": {"obs_mode": "joint", "frame_stack": 1, "n_steps": 32, "batch_size": 512, "n_epochs": 10,
               "clip_range": 0.2},
-    "shared": {"obs_mode": "joint+state", "frame_stack": 4, "n_steps": 50, "batch_size": None, "n_epochs": 15,
-               "clip_range": 0.05},
+    "shared": {"obs_mode": "joint+state", "n_steps": 50, "batch_size": None},
 }
 
 
@@ -78,12 +78,18 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
-        for name, value in POLICY_DEFAULTS[self.policy].items():
+        defaults = dict(POLICY_DEFAULTS[self.policy])
+        minibatches = 1
+        if self.policy == "shared":
+            per_map = shared_map_defaults(self.map_name)
+            minibatches = per_map.pop("minibatches")
+            defaults.update(per_map)
+        for name, value in defaults.items():
             if getattr(self, name) is None:
                 setattr(self, name, value)
         if self.batch_size is None and isinstance(self.n_steps, (int, np.integer)) \
                 and isinstance(self.num_envs, (int, np.integer)):
-            self.batch_size = self.num_envs * self.n_steps  # one minibatch: the whole rollout
+            self.batch_size = max(self.num_envs * self.n_steps // minibatches, 1)  # the rollout in that many parts
         self.frame_stack = check_frame_stack(self.frame_stack)
         if not isinstance(self.clip_range, (int, float)) or isinstance(self.clip_range, bool) \
                 or not 0 < self.clip_range < 1:
