@@ -122,26 +122,28 @@ def test_every_update_uses_the_scheduled_entropy_coefficient(tmp_path, monkeypat
 
 
 # MAPPO's launch scripts (marlbenchmark/on-policy de66d7a, onpolicy/scripts/train_smac_scripts/train_smac_<map>.sh;
-# every one runs --n_rollout_threads 8 --episode_length 400): algo, --ppo_epoch, --clip_param (config default 0.2),
-# --num_mini_batch, stacked frames. rmappo is the recurrent actor; mappo without stacking has no memory.
-MAPPO_SCRIPTS = {  # map: (epochs, clip, minibatches, frames our shared policy stands in for its memory with)
-    "3s_vs_5z": (15, 0.05, 1, 4),  # mappo --ppo_epoch 15 --clip_param 0.05 --use_stacked_frames --stacked_frames 4
-    "27m_vs_30m": (5, 0.2, 1, 4),  # rmappo --ppo_epoch 5
-    "MMM2": (5, 0.2, 2, 4),  # rmappo --num_mini_batch 2 --ppo_epoch 5 --gain 1
-    "corridor": (5, 0.2, 1, 1),  # mappo --ppo_epoch 5
-    "25m": (10, 0.2, 1, 4),  # rmappo --ppo_epoch 10
-    "5m_vs_6m": (10, 0.05, 1, 4),  # rmappo --ppo_epoch 10 --clip_param 0.05
-    "2s_vs_1sc": (15, 0.2, 1, 4),  # rmappo --ppo_epoch 15
-    "2s3z": (15, 0.2, 1, 4),  # no script: config.py's defaults (ppo_epoch 15, clip_param 0.2, num_mini_batch 1)
+# every one runs --n_rollout_threads 8 --episode_length 400): algo, --ppo_epoch, --num_mini_batch, stacked frames.
+# rmappo is the recurrent actor; mappo without stacking has no memory.
+MAPPO_SCRIPTS = {  # map: (epochs, minibatches, frames our shared policy stands in for its memory with)
+    "3s_vs_5z": (15, 1, 4),  # mappo --ppo_epoch 15 --clip_param 0.05 --use_stacked_frames --stacked_frames 4
+    "27m_vs_30m": (5, 1, 4),  # rmappo --ppo_epoch 5
+    "MMM2": (5, 2, 4),  # rmappo --num_mini_batch 2 --ppo_epoch 5 --gain 1
+    "corridor": (5, 1, 1),  # mappo --ppo_epoch 5
+    "25m": (10, 1, 4),  # rmappo --ppo_epoch 10
+    "5m_vs_6m": (10, 1, 4),  # rmappo --ppo_epoch 10 --clip_param 0.05
+    "2s_vs_1sc": (15, 1, 4),  # rmappo --ppo_epoch 15
+    "2s3z": (15, 1, 4),  # no script: config.py's defaults (ppo_epoch 15, num_mini_batch 1)
 }
 
 
 @pytest.mark.parametrize("map_name", sorted(MAPPO_SCRIPTS))
 def test_the_shared_policy_defaults_to_mappos_settings_for_the_map(map_name):
-    epochs, clip, minibatches, frames = MAPPO_SCRIPTS[map_name]
+    epochs, minibatches, frames = MAPPO_SCRIPTS[map_name]
     shared = TrainConfig(map_name=map_name, policy="shared", num_envs=64)
     assert (shared.obs_mode, shared.n_steps) == ("joint+state", 50)  # 64 x 50 = MAPPO's 8 x 400 samples
-    assert (shared.n_epochs, shared.clip_range, shared.frame_stack) == (epochs, clip, frames)
+    assert (shared.n_epochs, shared.frame_stack) == (epochs, frames)
+    # SB3 clips the joint ratio (the product over units), not MAPPO's per-agent one: one measured clip for every map
+    assert shared.clip_range == 0.05
     assert shared.batch_size == 3200 // minibatches
     assert TrainConfig(map_name=map_name, policy="shared", num_envs=8, n_steps=400).batch_size == 3200 // minibatches
     assert TrainConfig(map_name=map_name, policy="shared", num_envs=np.int64(8),

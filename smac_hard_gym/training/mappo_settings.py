@@ -1,4 +1,4 @@
-"""MAPPO's PPO settings for each SMAC map, the shared policy's per-map defaults (``train --policy shared``).
+"""MAPPO's PPO settings for each SMAC map: the shared policy's per-map defaults (``train --policy shared``).
 
 MAPPO's authors tuned a few PPO settings per map and published them as one launch script per map
 (marlbenchmark/on-policy, commit de66d7a, ``onpolicy/scripts/train_smac_scripts/train_smac_<map>.sh``; the
@@ -6,14 +6,16 @@ SMAC-HARD repository's on-policy copy has the same). Every script runs 8 threads
 update, as our 64 battles x 50 steps), learning rate 5e-4, entropy 0.01, gamma 0.99; they differ in:
 
 - ``epochs`` (``--ppo_epoch``): 15 by default, 10 or 5 on the larger maps;
-- ``clip`` (``--clip_param``): 0.2 by default, 0.05 on 3s_vs_5z, 5m_vs_6m and 8m_vs_9m;
 - ``minibatches`` (``--num_mini_batch``): 1, except 2 on MMM2;
 - ``memory``: "gru" where the script runs ``rmappo`` (a recurrent actor and critic), "frames" where it runs
   ``mappo`` with ``--use_stacked_frames --stacked_frames 4`` (3s_vs_4z, 3s_vs_5z), "none" where it runs ``mappo``
   without stacking (corridor, 6h_vs_8z).
 
 The shared policy has no recurrent core; its memory is stacked frames, so "gru" and "frames" both give 4 frames
-(the number MAPPO stacks) and "none" gives 1. Not carried over: MMM2's ``--gain 1`` (the initial scale of the action
+(the number MAPPO stacks) and "none" gives 1. The clip range does not carry over: MAPPO clips each agent's
+probability ratio (0.2; 0.05 on 3s_vs_5z, 5m_vs_6m and 8m_vs_9m), SB3 the joint one, the product over the units,
+so the shared policy keeps one measured clip for every map (training.config.POLICY_DEFAULTS). Not carried over
+either: MMM2's ``--gain 1`` (the initial scale of the action
 layer; ours keeps SB3's 0.01, as MAPPO's other maps) and ``--use_value_active_masks`` (the value loss of dead agents;
 our critic gives one value per battle). 2s3z has no script: it gets MAPPO's defaults, as any map not listed.
 """
@@ -25,19 +27,18 @@ from typing import Any
 __all__ = ["MAPPO_SMAC", "MAPPO_DEFAULT", "FRAMES_FOR_MEMORY", "shared_map_defaults"]
 
 # MAPPO's config.py defaults (a map without a script)
-MAPPO_DEFAULT: dict[str, Any] = {"epochs": 15, "clip": 0.2, "minibatches": 1, "memory": "gru"}
+MAPPO_DEFAULT: dict[str, Any] = {"epochs": 15, "minibatches": 1, "memory": "gru"}
 
 # what differs from MAPPO_DEFAULT in each map's script
 MAPPO_SMAC: dict[str, dict[str, Any]] = {
     "3m": {}, "8m": {}, "MMM": {}, "1c3s5z": {}, "2m_vs_1z": {}, "2s_vs_1sc": {}, "3s_vs_3z": {},
     "bane_vs_bane": {}, "so_many_baneling": {},
     "25m": {"epochs": 10}, "10m_vs_11m": {"epochs": 10},
-    "5m_vs_6m": {"epochs": 10, "clip": 0.05},
-    "8m_vs_9m": {"clip": 0.05},
+    "5m_vs_6m": {"epochs": 10}, "8m_vs_9m": {},
     "27m_vs_30m": {"epochs": 5}, "3s5z": {"epochs": 5}, "3s5z_vs_3s6z": {"epochs": 5}, "2c_vs_64zg": {"epochs": 5},
     "MMM2": {"epochs": 5, "minibatches": 2},
     "3s_vs_4z": {"memory": "frames"},
-    "3s_vs_5z": {"clip": 0.05, "memory": "frames"},
+    "3s_vs_5z": {"memory": "frames"},
     "corridor": {"epochs": 5, "memory": "none"}, "6h_vs_8z": {"epochs": 5, "memory": "none"},
 }
 
@@ -45,8 +46,8 @@ FRAMES_FOR_MEMORY = {"gru": 4, "frames": 4, "none": 1}
 
 
 def shared_map_defaults(map_name: str) -> dict[str, Any]:
-    """The shared policy's TrainConfig defaults that MAPPO sets per map: ``n_epochs``, ``clip_range``,
-    ``frame_stack`` and ``minibatches`` (the rollout is split into that many minibatches)."""
+    """The shared policy's TrainConfig defaults that MAPPO sets per map: ``n_epochs``, ``frame_stack`` and
+    ``minibatches`` (the rollout is split into that many minibatches)."""
     settings = {**MAPPO_DEFAULT, **MAPPO_SMAC.get(map_name, {})}
-    return {"n_epochs": settings["epochs"], "clip_range": settings["clip"],
-            "frame_stack": FRAMES_FOR_MEMORY[settings["memory"]], "minibatches": settings["minibatches"]}
+    return {"n_epochs": settings["epochs"], "frame_stack": FRAMES_FOR_MEMORY[settings["memory"]],
+            "minibatches": settings["minibatches"]}
