@@ -22,8 +22,8 @@ def _policy_defaults() -> str:
         return "the rollout in MAPPO's minibatches for the map" if v is None else str(v)
 
     flags = {"n_epochs": "epochs"}  # the config's field names that the CLI spells otherwise
-    per_map = {"shared": "; epochs and frame-stack as MAPPO's launch script for the map has them "
-                         "(smac_hard_gym/training/mappo_settings.py)"}
+    per_map = {"shared": "; epochs and frame-stack as MAPPO's launch script for the map has them, clip-range "
+                         "0.05 with 15 epochs, 0.2 with fewer (smac_hard_gym/training/mappo_settings.py)"}
     return "; ".join(f"{policy}: " + ", ".join(f"{flags.get(key, key).replace('_', '-')} {value(v)}"
                                                for key, v in table.items()) + per_map.get(policy, "")
                      for policy, table in POLICY_DEFAULTS.items())

@@ -12,19 +12,22 @@ update, as our 64 battles x 50 steps), learning rate 5e-4, entropy 0.01, gamma 0
   without stacking (corridor, 6h_vs_8z).
 
 The shared policy has no recurrent core; its memory is stacked frames, so "gru" and "frames" both give 4 frames
-(the number MAPPO stacks) and "none" gives 1. The clip range does not carry over: MAPPO clips each agent's
-probability ratio (0.2; 0.05 on 3s_vs_5z, 5m_vs_6m and 8m_vs_9m), SB3 the joint one, the product over the units,
-so the shared policy keeps one measured clip for every map (training.config.POLICY_DEFAULTS). Not carried over
-either: MMM2's ``--gain 1`` (the initial scale of the action
-layer; ours keeps SB3's 0.01, as MAPPO's other maps) and ``--use_value_active_masks`` (the value loss of dead agents;
-our critic gives one value per battle). 2s3z has no script: it gets MAPPO's defaults, as any map not listed.
+(the number MAPPO stacks) and "none" gives 1. MAPPO's clip range does not carry over: MAPPO clips each agent's
+probability ratio (0.2; 0.05 on 3s_vs_5z, 5m_vs_6m and 8m_vs_9m), SB3 the joint one, the product over the units.
+The shared policy's clip on the joint ratio is measured instead (docs/training_results.md): 0.05 where MAPPO runs 15
+epochs (2s_vs_1sc: 1.00 on three seeds, where 0.2 lost two of them; 3s_vs_5z), 0.2 where it runs 10 or 5, its
+larger maps (25m and 27m_vs_30m learn nothing in 200k steps at 0.05 with those epochs; they win at 0.2): fewer
+gradient passes an update take a looser trust region. Not carried over either: MMM2's ``--gain 1`` (the initial
+scale of the action layer; ours keeps SB3's 0.01, as MAPPO's other maps) and ``--use_value_active_masks`` (the
+value loss of dead agents; our critic gives one value per battle). 2s3z has no script: it gets MAPPO's defaults,
+as any map not listed.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["MAPPO_SMAC", "MAPPO_DEFAULT", "FRAMES_FOR_MEMORY", "shared_map_defaults"]
+__all__ = ["MAPPO_SMAC", "MAPPO_DEFAULT", "FRAMES_FOR_MEMORY", "CLIP_FOR_EPOCHS", "shared_map_defaults"]
 
 # MAPPO's config.py defaults (a map without a script)
 MAPPO_DEFAULT: dict[str, Any] = {"epochs": 15, "minibatches": 1, "memory": "gru"}
@@ -43,11 +46,12 @@ MAPPO_SMAC: dict[str, dict[str, Any]] = {
 }
 
 FRAMES_FOR_MEMORY = {"gru": 4, "frames": 4, "none": 1}
+CLIP_FOR_EPOCHS = {15: 0.05, 10: 0.2, 5: 0.2}  # the joint ratio's clip by MAPPO's epochs for the map (measured)
 
 
 def shared_map_defaults(map_name: str) -> dict[str, Any]:
-    """The shared policy's TrainConfig defaults that MAPPO sets per map: ``n_epochs``, ``frame_stack`` and
+    """The shared policy's TrainConfig defaults for ``map_name``: ``n_epochs``, ``frame_stack``, ``clip_range`` and
     ``minibatches`` (the rollout is split into that many minibatches)."""
     settings = {**MAPPO_DEFAULT, **MAPPO_SMAC.get(map_name, {})}
     return {"n_epochs": settings["epochs"], "frame_stack": FRAMES_FOR_MEMORY[settings["memory"]],
-            "minibatches": settings["minibatches"]}
+            "clip_range": CLIP_FOR_EPOCHS[settings["epochs"]], "minibatches": settings["minibatches"]}
