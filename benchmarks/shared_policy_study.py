@@ -21,7 +21,9 @@ Variants (``--variants``, comma-separated):
 - ``shared-1-frame``: one frame (no memory);
 - ``shared-sb3-ppo``: the joint MLP's PPO settings (64 x 32 steps, minibatches of 512, 10 epochs, clip 0.2);
 - ``shared-shuffled-buffer``: ``shared`` with sb3-contrib's own whole-rollout minibatch (the rollout gathered in a
-  new random order for every epoch) instead of ours (built once per update); for ``--speed``.
+  new random order for every epoch) instead of ours (built once per update); for ``--speed``;
+- ``shared-15-epochs``: 15 epochs and clip 0.05 on every map (the shared policy's defaults before they followed
+  MAPPO's settings for the map).
 
 ``--probe``: no training; scripted learner-side policies on 2s_vs_1sc against "smac", written in the learner's own
 observations and actions (what PPO sees and can do), to measure which behaviours the map rewards (win rate, return,
@@ -72,6 +74,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "shared-sb3-ppo": {"policy": "shared", "config": {"n_steps": 32, "batch_size": 512, "n_epochs": 10,
                                                        "clip_range": 0.2}, "kwargs": {}},
     "shared-shuffled-buffer": {"policy": "shared", "config": {}, "kwargs": {}, "buffer": "sb3"},
+    "shared-15-epochs": {"policy": "shared", "config": {"n_epochs": 15, "clip_range": 0.05}, "kwargs": {}},
 }
 DEFAULT_VARIANTS = "joint,shared,shared-no-id,shared-no-state,shared-no-vnorm"
 
