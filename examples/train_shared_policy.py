@@ -8,14 +8,14 @@ What ``smac-hard-gym train --policy shared`` builds, written out:
 
 - the env: the ``joint+state`` view (every unit's SMAC observation, then the global state for the critic) with each
   unit's last 4 observations stacked (``frame_stack=4``) where MAPPO's run for the map has memory (a recurrent actor,
-  or stacked frames as on 3s_vs_5z): SMAC's observation has no weapon cooldown, and kiting needs to know when the
-  weapon is ready again;
+  or stacked frames as on 3s_vs_5z) and no measurement of ours says it buys nothing: SMAC's observation has no
+  weapon cooldown, and kiting needs to know when the weapon is ready again;
 - the policy: :class:`~smac_hard_gym.wrappers.sb3_shared.SharedUnitPolicy`, whose layout (one unit's block, the state,
   the last-action block) :func:`~smac_hard_gym.wrappers.sb3_shared.shared_policy_kwargs` reads from the env, with
   its rollout buffer, which keeps the value normalisation's statistics;
-- PPO: MAPPO's SMAC settings: 64 battles x 50 steps an update (MAPPO's 8 x 400), and the epochs, clip range and
-  minibatches of MAPPO's launch script for the map (``smac_hard_gym.training.mappo_settings``; on 3s_vs_5z: one
-  minibatch, 15 epochs, clip 0.05).
+- PPO: MAPPO's SMAC settings: 64 battles x 50 steps an update (MAPPO's 8 x 400), and the epochs and minibatches
+  of MAPPO's launch script for the map with the clip measured for those epochs
+  (``smac_hard_gym.training.mappo_settings``; on 3s_vs_5z: one minibatch, 15 epochs, clip 0.05).
 """
 
 from __future__ import annotations
