@@ -20,36 +20,12 @@ Variants (``--variants``, comma-separated):
 - ``shared-popart``: PopArt (value normalisation that rescales the value head to keep its outputs);
 - ``shared-1-frame``: one frame (no memory);
 - ``shared-sb3-ppo``: the joint MLP's PPO settings (64 x 32 steps, minibatches of 512, 10 epochs, clip 0.2);
-- ``shared-shuffled-buffer``: ``shared`` with sb3-contrib's own whole-rollout minibatch (the rollout gathered in a
-  new random order for every epoch) instead of ours (built once per update); for ``--speed``;
-- ``shared-15-epochs``: 15 epochs and clip 0.05 on every map (the shared policy's defaults before they followed
-  MAPPO's settings for the map).
+- ``shared-4-frames``: four frames on every map (27m_vs_30m's default is one);
+- ``shared-shuffled-buffer``: ``shared-4-frames`` with sb3-contrib's own whole-rollout minibatch (the rollout
+  gathered in a new random order for every epoch) instead of ours (built once per update); for ``--speed``;
+- ``shared-15-epochs``: 4 frames, 15 epochs and clip 0.05 on every map (the shared policy's defaults before they
+  followed MAPPO's settings for the map).
 
-``--probe``: no training; scripted learner-side policies on 2s_vs_1sc against "smac", written in the learner's own
-observations and actions (what PPO sees and can do), to measure which behaviours the map rewards (win rate, return,
-discounted return, episode length, and how often the crawler changes target while both stalkers live), on the test
-battles:
-
-- ``attack``: attack the crawler when the action is legal (centre distance 6), else walk north towards it;
-- ``attack-eps0.1``, ``attack-eps0.3``: the same with a random legal action instead, with probability 0.1 or 0.3;
-- ``swap``: a single tank swap: a unit whose health + shields fell to 25 or less while its ally still has 140 or
-  more walks south while it sees the crawler (it leaves the crawler's range, 7 + radii = 8.75 centre to centre,
-  and the crawler turns on the ally), then comes back;
-- ``regen``: shield cycling with health kept in reserve: once a unit's health is 45 or less (and its ally's too, or
-  the ally is dead) and its shields are gone, it walks south out of sight of the crawler and stops there until its
-  shields have regenerated (10 game seconds after the last hit, then 2 per game second), then comes back; plus the
-  swap above. Rewards for this and the others are SMAC's default (damage dealt, kills, the win).
-
-``--speed``: no evaluation; instead ``--rounds`` interleaved rounds of ``--timesteps`` steps per variant after one
-untimed warm-up rollout (as ``smac-hard-gym bench train``), reporting each round's steps/s and the median. Either
-way the engine's kernels and torch are warmed up first (one untimed rollout per policy kind and obs mode), so the
-first variant does not pay for compilation. Training steps/s counts rollouts and updates together (evaluation
-apart), like ``train``'s and ``bench train``'s.
-
-    nice -n 10 python benchmarks/shared_policy_study.py --maps 3m --seeds 0 --timesteps 20000
-    nice -n 10 python benchmarks/shared_policy_study.py --probe --eval-episodes 256
-    nice -n 10 python benchmarks/shared_policy_study.py --maps 27m_vs_30m --speed --timesteps 4096 --rounds 2 \\
-        --variants joint,shared
 """
 
 from __future__ import annotations
@@ -73,8 +49,10 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "shared-1-frame": {"policy": "shared", "config": {"frame_stack": 1}, "kwargs": {}},
     "shared-sb3-ppo": {"policy": "shared", "config": {"n_steps": 32, "batch_size": 512, "n_epochs": 10,
                                                        "clip_range": 0.2}, "kwargs": {}},
-    "shared-shuffled-buffer": {"policy": "shared", "config": {}, "kwargs": {}, "buffer": "sb3"},
-    "shared-15-epochs": {"policy": "shared", "config": {"n_epochs": 15, "clip_range": 0.05}, "kwargs": {}},
+    "shared-4-frames": {"policy": "shared", "config": {"frame_stack": 4}, "kwargs": {}},
+    "shared-shuffled-buffer": {"policy": "shared", "config": {"frame_stack": 4}, "kwargs": {}, "buffer": "sb3"},
+    "shared-15-epochs": {"policy": "shared", "config": {"n_epochs": 15, "clip_range": 0.05, "frame_stack": 4},
+                         "kwargs": {}},
 }
 DEFAULT_VARIANTS = "joint,shared,shared-no-id,shared-no-state,shared-no-vnorm"
 
