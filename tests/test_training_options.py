@@ -129,7 +129,7 @@ MAPPO_SCRIPTS = {  # map: (epochs, minibatches, frames our shared policy stands 
     "27m_vs_30m": (5, 1, 1),  # rmappo --ppo_epoch 5; one frame: memory measured to buy nothing there
     "MMM2": (5, 2, 4),  # rmappo --num_mini_batch 2 --ppo_epoch 5 --gain 1
     "corridor": (5, 1, 1),  # mappo --ppo_epoch 5
-    "25m": (10, 1, 4),  # rmappo --ppo_epoch 10
+    "25m": (10, 1, 1),  # rmappo --ppo_epoch 10; one frame: memory measured to buy nothing there
     "5m_vs_6m": (10, 1, 4),  # rmappo --ppo_epoch 10 --clip_param 0.05
     "2s_vs_1sc": (15, 1, 4),  # rmappo --ppo_epoch 15
     "2s3z": (15, 1, 4),  # no script: config.py's defaults (ppo_epoch 15, num_mini_batch 1)
