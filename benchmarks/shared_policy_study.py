@@ -11,8 +11,8 @@ Variants (``--variants``, comma-separated):
 - ``joint``: the joint MLP (MaskableJointPolicy, obs_mode "joint", 128x128 actor and critic, the first sweep's PPO);
 - ``shared``: ``train --policy shared``: SharedUnitPolicy on the "joint+state" view, shared 64x64 actor on
   [frames, unit id, last action], 128x128 critic on the global state, running value normalisation, MAPPO's PPO
-  settings for the map (64 x 50 steps; epochs, clip range, minibatches and memory (4 frames or 1) from MAPPO's
-  launch script for the map, ``smac_hard_gym.training.mappo_settings``);
+  settings for the map (64 x 50 steps; epochs, minibatches and memory (4 frames or 1) from MAPPO's launch script
+  for the map, the clip measured for those epochs: ``smac_hard_gym.training.mappo_settings``);
 - ``shared-no-id``: without the one-hot unit id;
 - ``shared-no-last-action``: without the last-action input;
 - ``shared-no-state``: decentralised critic (shared per-unit critic on [obs, id], averaged over living units);
@@ -26,6 +26,31 @@ Variants (``--variants``, comma-separated):
 - ``shared-15-epochs``: 4 frames, 15 epochs and clip 0.05 on every map (the shared policy's defaults before they
   followed MAPPO's settings for the map).
 
+``--probe``: no training; scripted learner-side policies on 2s_vs_1sc against "smac", written in the learner's own
+observations and actions (what PPO sees and can do), to measure which behaviours the map rewards (win rate, return,
+discounted return, episode length, and how often the crawler changes target while both stalkers live), on the test
+battles:
+
+- ``attack``: attack the crawler when the action is legal (centre distance 6), else walk north towards it;
+- ``attack-eps0.1``, ``attack-eps0.3``: the same with a random legal action instead, with probability 0.1 or 0.3;
+- ``swap``: a single tank swap: a unit whose health + shields fell to 25 or less while its ally still has 140 or
+  more walks south while it sees the crawler (it leaves the crawler's range, 7 + radii = 8.75 centre to centre,
+  and the crawler turns on the ally), then comes back;
+- ``regen``: shield cycling with health kept in reserve: once a unit's health is 45 or less (and its ally's too, or
+  the ally is dead) and its shields are gone, it walks south out of sight of the crawler and stops there until its
+  shields have regenerated (10 game seconds after the last hit, then 2 per game second), then comes back; plus the
+  swap above. Rewards for this and the others are SMAC's default (damage dealt, kills, the win).
+
+``--speed``: no evaluation; instead ``--rounds`` interleaved rounds of ``--timesteps`` steps per variant after one
+untimed warm-up rollout (as ``smac-hard-gym bench train``), reporting each round's steps/s and the median. Either
+way the engine's kernels and torch are warmed up first (one untimed rollout per policy kind and obs mode), so the
+first variant does not pay for compilation. Training steps/s counts rollouts and updates together (evaluation
+apart), like ``train``'s and ``bench train``'s.
+
+    nice -n 10 python benchmarks/shared_policy_study.py --maps 3m --seeds 0 --timesteps 20000
+    nice -n 10 python benchmarks/shared_policy_study.py --probe --eval-episodes 256
+    nice -n 10 python benchmarks/shared_policy_study.py --maps 27m_vs_30m --speed --timesteps 4096 --rounds 2 \\
+        --variants joint,shared
 """
 
 from __future__ import annotations
