@@ -12,6 +12,7 @@ import json
 from typing import Any
 
 from smac_hard_gym.training.config import POLICIES, POLICY_DEFAULTS, REWARDS
+from smac_hard_gym.training.mappo_settings import CLIP_FOR_EPOCHS
 
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
 
@@ -22,8 +23,10 @@ def _policy_defaults() -> str:
         return "the rollout in MAPPO's minibatches for the map" if v is None else str(v)
 
     flags = {"n_epochs": "epochs"}  # the config's field names that the CLI spells otherwise
-    per_map = {"shared": "; epochs and frame-stack as MAPPO's launch script for the map has them, clip-range "
-                         "0.05 with 15 epochs, 0.2 with fewer (smac_hard_gym/training/mappo_settings.py)"}
+    clips = ", ".join(f"{clip} with {epochs}" for epochs, clip in CLIP_FOR_EPOCHS.items())
+    per_map = {"shared": f"; epochs and frame-stack as MAPPO's launch script for the map has them (one frame where "
+                         f"measured to do as well), clip-range by "
+                         f"epochs: {clips} (smac_hard_gym/training/mappo_settings.py)"}
     return "; ".join(f"{policy}: " + ", ".join(f"{flags.get(key, key).replace('_', '-')} {value(v)}"
                                                for key, v in table.items()) + per_map.get(policy, "")
                      for policy, table in POLICY_DEFAULTS.items())
