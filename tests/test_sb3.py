@@ -185,7 +185,6 @@ def test_joint_policies_and_buffers_train_the_same_weights_as_sb3_contribs(obs_m
     assert not all(torch.equal(a, b) for a, b in zip(weights[0], _fresh_weights(stock, obs_mode), strict=True))
 
 
-
 def _filled_buffers(n_steps, n_envs, seed):
     # sb3-contrib's buffer and ours over one 3m rollout of random numbers (3 units x 9 actions, 30 features)
     from sb3_contrib.common.maskable.buffers import MaskableRolloutBuffer
@@ -256,6 +255,7 @@ def test_one_minibatch_training_agrees_with_sb3_contribs_to_float_rounding():
     assert all(torch.allclose(a, b, rtol=0, atol=1e-5) for a, b in zip(*weights, strict=True))
     assert not all(torch.allclose(a, b, rtol=0, atol=1e-5)
                    for a, b in zip(weights[0], _fresh_weights("MlpPolicy", "joint"), strict=True))
+
 
 def _fresh_weights(policy, obs_mode):
     venv = SB3VecEnv(NativeVectorEnv("3m", 4, autoreset_mode="SameStep", opponent="smac", obs_mode=obs_mode))
