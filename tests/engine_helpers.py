@@ -12,8 +12,12 @@ from smac_hard_gym.engine.state import Scratch, allocate_state
 from smac_hard_gym.maps import parse_map
 
 
-def open_map(red: list[str], blue: list[str], name: str = "test_open"):
-    """A 32x32 fully pathable flat map with one unit per listed name (spawns far apart; tests re-place units)."""
+def open_map(red: list[str], blue: list[str], name: str = "test_open", band: tuple[int, int] | None = None):
+    """A 32x32 flat map with one unit per listed name (spawns far apart; tests re-place units): fully pathable, or,
+    with ``band = (y0, y1)``, only the rows y0 <= y < y1 (a corridor along x; spawns on its middle row)."""
+    rows = ["." * 32 if band is None or band[0] <= y < band[1] else "#" * 32 for y in range(32)]
+    red_y, blue_y = (4.0, 24.0) if band is None else (0.5 * (band[0] + band[1]),) * 2
+    row_step = 2.5 if band is None else 0.0
     doc = {
         "name": name,
         "episode_limit": 1000,
@@ -22,13 +26,13 @@ def open_map(red: list[str], blue: list[str], name: str = "test_open"):
         "map_type": "marines",
         "size": [32, 32],
         "units": {
-            "red": [{"unit": u, "count": 1, "spawn": [4.0 + 2.5 * (k % 10), 4.0 + 2.5 * (k // 10)]}
+            "red": [{"unit": u, "count": 1, "spawn": [4.0 + 2.5 * (k % 10), red_y + row_step * (k // 10)]}
                     for k, u in enumerate(red)],
-            "blue": [{"unit": u, "count": 1, "spawn": [4.0 + 2.5 * (k % 10), 24.0 + 2.5 * (k // 10)]}
+            "blue": [{"unit": u, "count": 1, "spawn": [4.0 + 2.5 * (k % 10), blue_y + row_step * (k // 10)]}
                      for k, u in enumerate(blue)],
         },
         "enemy_order": {"kind": "none"},
-        "terrain": {"pathable": ["." * 32] * 32, "cliff": ["1" * 32] * 32},
+        "terrain": {"pathable": rows, "cliff": ["1" * 32] * 32},
     }
     return parse_map(doc, name)
 
@@ -45,13 +49,14 @@ def battle_rows_of(x: np.ndarray, y: np.ndarray, alive: np.ndarray, order: np.nd
 
 
 def engine_with(red: list[str], blue: list[str], positions: dict[int, tuple[float, float]], batch: int = 1,
-                **engine_kwargs) -> BattleEngine:
-    """An engine on an open map with units at ``positions[slot]`` (red slots first, in the listed order).
+                band: tuple[int, int] | None = None, **engine_kwargs) -> BattleEngine:
+    """An engine on an open map (``open_map``, ``band`` as there) with units at ``positions[slot]`` (red slots first,
+    in the listed order).
 
     Without SC2's random weapon delay unless asked (``cooldown_jitter=...``): fights are then computable by hand.
     """
     engine_kwargs.setdefault("cooldown_jitter", None)
-    engine = BattleEngine(open_map(red, blue), batch_size=batch, **engine_kwargs)
+    engine = BattleEngine(open_map(red, blue, band=band), batch_size=batch, **engine_kwargs)
     for slot, (x, y) in positions.items():
         for b in range(batch):
             engine.place(b, slot, x=x, y=y)

@@ -6,6 +6,7 @@ Speeds per game loop: marine and zealot 2.25 / 16 = 0.140625. Without SC2's rand
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from engine_helpers import engine_with
 
@@ -29,28 +30,52 @@ def _run(engine, loops: int) -> None:
 # --- Pushing (section 1). Every SMAC unit has push priority 10: enemies neither push nor are pushed.
 
 
-def test_a_walker_does_not_push_an_enemy_it_walks_into():
+def test_a_walker_does_not_push_an_enemy_it_walks_into_and_goes_round_it():
     # A zealot (r 0.5) walks east into an idle marine (r 0.375) 2 away: it touches at 15.125 (centre distance 0.875)
-    # after 8 loops and is put back there every loop after; the marine never moves.
+    # after 8 loops and is put back there in loop 9 (enemies push nobody). In loop 10 it steers (C11): straight on,
+    # 30 and 60 degrees still bring it closer than 0.875, 90 degrees does not; with the marine dead ahead it turns
+    # north first. The marine never moves, and the zealot passes it.
     engine = engine_with(["Marine_RL"], ["Zealot"], {0: (16.0, 16.0), 1: (14.0, 16.0)})
     _order(engine, 1, CMD_MOVE, point=(20.0, 16.0))
-    _run(engine, 24)
+    _run(engine, 9)
     st = engine.state
-    assert (st.x[0, 0], st.y[0, 0]) == (16.0, 16.0)
     assert st.x[0, 1] == pytest.approx(15.125) and st.y[0, 1] == pytest.approx(16.0)
+    _run(engine, 1)
+    assert st.x[0, 1] == pytest.approx(15.125) and st.y[0, 1] == pytest.approx(16.0 + STEP)
+    closest = _closest_approach(engine, 0, 1, 40)
+    assert (st.x[0, 0], st.y[0, 0]) == (16.0, 16.0)
+    assert closest >= 0.875 - 1e-9 and st.x[0, 1] > 16.875
 
 
-def test_own_units_standing_to_fire_are_not_pushed_by_a_walker():
-    # Marine A fires at a medivac 4 away (in range 5 + radii); marine B walks from 8 toward 13 behind it. B touches
-    # A (radii 0.75) at 9.25 and stays there; A does not move. (A is not idle, so B does not arrive by bumping.)
-    engine = engine_with(["Marine_RL", "Marine_RL"], ["Medivac"], {0: (10.0, 16.0), 1: (8.0, 16.0), 2: (14.0, 16.0)})
-    _order(engine, 0, CMD_ATTACK, target=2)
-    _order(engine, 1, CMD_MOVE, point=(13.0, 16.0))
-    _run(engine, 24)
+def _closest_approach(engine, i: int, j: int, loops: int) -> float:
+    """Run ``loops`` single loops; the smallest centre distance of units i and j seen after each."""
     st = engine.state
-    assert st.x[0, 0] == pytest.approx(10.0)
-    assert st.x[0, 1] == pytest.approx(9.25)
-    assert st.health[0, 2] < 150.0  # A kept firing
+    closest = float("inf")
+    for _ in range(loops):
+        _run(engine, 1)
+        closest = min(closest, float(np.hypot(st.x[0, i] - st.x[0, j], st.y[0, i] - st.y[0, j])))
+    return closest
+
+
+@pytest.mark.parametrize("stand", [CMD_ATTACK, CMD_HOLD], ids=["firing", "holding"])
+def test_own_units_standing_in_the_way_are_not_pushed_and_a_walker_goes_round(stand):
+    # Marine A fires at a medivac 4 away (in range 5 + radii), or holds; marine B walks from 8 toward 13 behind it.
+    # B touches A (radii 0.75) at 9.25 in loop 9 and is put back there; in loop 10 it steps north (90 degrees:
+    # 30 and 60 would close in on A), then goes round and reaches its point. A never moves. (A is not idle, so B
+    # does not arrive by bumping into it.)
+    engine = engine_with(["Marine_RL", "Marine_RL"], ["Medivac"], {0: (10.0, 16.0), 1: (8.0, 16.0), 2: (14.0, 16.0)})
+    _order(engine, 0, stand, target=2)
+    _order(engine, 1, CMD_MOVE, point=(13.0, 16.0))
+    _run(engine, 9)
+    st = engine.state
+    assert (st.x[0, 1], st.y[0, 1]) == (pytest.approx(9.25), pytest.approx(16.0))
+    _run(engine, 1)
+    assert (st.x[0, 1], st.y[0, 1]) == (pytest.approx(9.25), pytest.approx(16.0 + STEP))
+    closest = _closest_approach(engine, 0, 1, 50)
+    assert (st.x[0, 0], st.y[0, 0]) == (10.0, 16.0) and closest >= 0.75 - 1e-9
+    assert np.hypot(st.x[0, 1] - 13.0, st.y[0, 1] - 16.0) <= 0.05
+    if stand == CMD_ATTACK:
+        assert st.health[0, 2] < 150.0  # A kept firing
 
 
 def test_a_walker_shoves_an_idle_own_unit_sharing_the_overlap():
@@ -64,12 +89,35 @@ def test_a_walker_shoves_an_idle_own_unit_sharing_the_overlap():
     assert st.x[0, 1] == pytest.approx(8.0 + 9 * STEP - 0.015625 / 2 + 15 * STEP / 2)  # 10.3125
 
 
-def test_a_unit_on_hold_is_not_pushed():
-    engine = engine_with(["Marine_RL", "Marine_RL"], ["Medivac"], {0: (10.0, 16.0), 1: (8.0, 16.0), 2: (14.0, 4.0)})
-    _order(engine, 0, CMD_HOLD)
-    _order(engine, 1, CMD_MOVE, point=(13.0, 16.0))
-    _run(engine, 24)
-    assert engine.state.x[0, 0] == 10.0 and engine.state.x[0, 1] == pytest.approx(9.25)
+# A wall of marines on hold across a corridor 4 high (rows 14-17, so centres 14 <= y < 18): B, a marine, walks east
+# into it from (8, 16.6). Ends: the wall's outer marines leave less than B's diameter (0.75) to the corridor's walls.
+WIDE_GAP = (14.375, 15.0, 16.75, 17.5)  # 1.0 free between 15.0 and 16.75 (edges 15.375, 16.375)
+NARROW_GAP = (14.375, 15.125, 16.5, 17.25)  # 0.625 free between 15.125 and 16.5: less than 0.75
+
+
+@pytest.mark.parametrize(("wall", "passes"), [(WIDE_GAP, True), (NARROW_GAP, False)], ids=["room", "no-room"])
+def test_a_walker_goes_through_a_gap_with_room_and_waits_behind_one_without(wall, passes):
+    # With room, B (blocked by the marine at 16.75, on its left) turns right first and goes through the gap. Without
+    # room it can at most wedge into the gap until it touches both sides, 0.6875 above and below its centre line:
+    # x = 10 - sqrt(0.75^2 - 0.6875^2) = 9.70; it waits there, never closer than 0.75 to any.
+    positions = {k: (10.0, y) for k, y in enumerate(wall)} | {len(wall): (8.0, 16.6), len(wall) + 1: (14.0, 4.0)}
+    engine = engine_with(["Marine_RL"] * (len(wall) + 1), ["Medivac"], positions, band=(14, 18))
+    for k in range(len(wall)):
+        _order(engine, k, CMD_HOLD)
+    walker = len(wall)
+    _order(engine, walker, CMD_MOVE, point=(13.0, 16.6))
+    st = engine.state
+    closest = float("inf")
+    for _ in range(60):
+        _run(engine, 1)
+        for k in range(len(wall)):
+            closest = min(closest, float(np.hypot(st.x[0, k] - st.x[0, walker], st.y[0, k] - st.y[0, walker])))
+    assert closest >= 0.75 - 1e-9
+    assert [(st.x[0, k], st.y[0, k]) for k in range(len(wall))] == [(10.0, y) for y in wall]
+    if passes:
+        assert st.x[0, walker] > 10.75
+    else:
+        assert st.x[0, walker] <= 10.0 - np.sqrt(0.75**2 - 0.6875**2) + 1e-9
 
 
 # --- Missiles (section 2): the stalker's, hydralisk's and marauder's shots fly; they home, never miss, and land

@@ -10,14 +10,16 @@ whole: the state (``BattleState``), the commands (``Commands``), the map's ``Ter
 1. ``_timers``: weapon cooldowns, shield regeneration after the no-damage delay, zerg regeneration, energy;
 2. ``_targeting``: ordered targets, SC2's automatic acquisition for units that acquire (idle, hold, attack-move)
    and the response to being attacked; SMAC's ``*_RL`` units are passive and acquire only while attack-moving;
-3. ``_movement`` toward the order point or the target, along the terrain's path tables (air ignores terrain);
+3. ``_movement`` toward the order point or the target, along the terrain's path tables (air ignores terrain),
+   steering round units in the way;
 4. ``_separation``: overlapping units of the same plane push apart (colossi walk over small units);
 5. ``_attacks``: shots, heals and baneling bursts; every unit alive when the loop began acts, so two marines can
    kill each other in the same loop (SC2 resolves in sequence; simultaneity keeps the batch order-free);
 6. ``_deaths``.
 
 Simplifications against SC2 (listed in the README): damage lands when the weapon fires, or a missile's flight
-later (no damage point), separation is a positional push rather than SC2's steering. The only random draw is SC2's
+later (no damage point), separation is a positional push, and a walker blocked by a unit that does not give way
+steers round it by a few fixed headings (SC2's steering is not published). The only random draw is SC2's
 random attack delay, from each battle's seeded xorshift stream (``BattleState.rng``).
 
 Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechanisms' own tests):
@@ -67,7 +69,9 @@ from smac_hard_gym.engine.state import (
     ORDER_HOLD,
     ORDER_IDLE,
     ORDER_MOVE,
+    STANCE_BLOCKED,
     STANCE_FIRING,
+    STANCE_KIND,
     STANCE_NONE,
     STANCE_WALKED,
 )
@@ -497,45 +501,128 @@ def _slide(px, py, nx, ny, mover, walk):
     return px, py
 
 
+@helper
+def _movable(i, order, slot_stats):
+    """Whether unit i can be pushed at all: not rooted (speed 0) and not holding position."""
+    return slot_stats[i, _SPEED] > 0.0 and order[i] != ORDER_HOLD
+
+
+@helper
+def _stands_in_way(k, i, side, order, stance, slot_stats):
+    """Whether unit k stands in the way of walker i instead of giving way (docs/engine_rules.md, C11): an own unit
+    standing to fire, holding or rooted (own units that walk or idle are shoved aside), or an enemy that is not
+    walking (enemies push nobody, P1). Reads the stances movement decided before anyone stepped."""
+    s = stance[k]
+    if s == STANCE_FIRING or not _movable(k, order, slot_stats):
+        return True
+    return side[k] != side[i] and s == STANCE_NONE
+
+
+@helper
+def _blocker(n, i, nx, ny, side, alive, x, y, order, target, stance, slot_stats):
+    """The unit that walker i, stepping to (nx, ny), would walk into most deeply among those that stand in its way
+    (``_stands_in_way``; its own target excepted: it walks to that one), or -1. A step that does not bring it closer
+    to a unit it already touches is free: it may slide along it."""
+    px, py = x[i], y[i]
+    ri = slot_stats[i, _RADIUS]
+    mover = slot_stats[i, _MOVER]
+    best = -1
+    deepest = 0.0
+    for k in range(n):
+        if k == i or k == target[i] or not alive[k] or slot_stats[k, _MOVER] != mover:
+            continue
+        rr = ri + slot_stats[k, _RADIUS]
+        dx, dy = x[k] - nx, y[k] - ny
+        d2 = dx * dx + dy * dy
+        if d2 >= rr * rr:
+            continue
+        cx, cy = x[k] - px, y[k] - py
+        if d2 >= cx * cx + cy * cy or not _stands_in_way(k, i, side, order, stance, slot_stats):
+            continue
+        depth = rr - math.sqrt(d2)
+        if depth > deepest:
+            deepest = depth
+            best = k
+    return best
+
+
+@helper
+def _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_stats, centre_x):
+    """The heading of blocked walker i (desired unit heading (ux, uy), ``step`` long): straight if free, else the
+    nearest free turn of 30, 60 or 90 degrees, first away from the unit in the way; (0, 0) if none is free, and the
+    walker waits its turn (SC2's movers flow round units standing to fire where there is room, C11).
+
+    A unit dead ahead is passed on the side that heads north (higher y), or, heading along y, toward the map's
+    centre line ``centre_x``: rules that a battle mirrored through that line mirrors."""
+    px, py = x[i], y[i]
+    k = _blocker(n, i, px + ux * step, py + uy * step, side, alive, x, y, order, target, stance, slot_stats)
+    if k < 0:
+        return ux, uy
+    cross = ux * (y[k] - py) - uy * (x[k] - px)  # > 0: the unit is on the walker's left, so turn right first
+    if cross != 0.0:
+        first = -1.0 if cross > 0.0 else 1.0
+    elif ux != 0.0:
+        first = 1.0 if ux > 0.0 else -1.0
+    else:
+        first = 1.0 if -uy * (centre_x - px) >= 0.0 else -1.0
+    for turn in range(1, 4):
+        angle = turn * (math.pi / 6.0)
+        c, s = math.cos(angle), math.sin(angle)
+        for sign in (first, -first):
+            vx, vy = ux * c - uy * s * sign, ux * s * sign + uy * c
+            if _blocker(n, i, px + vx * step, py + vy * step, side, alive, x, y, order, target, stance,
+                        slot_stats) < 0:
+                return vx, vy
+    return 0.0, 0.0
+
+
 @inline
 def _movement(n, r, slot_stats, terrain):
     """Every unit steps toward its target (unless in range) or its order point; ``stance`` records who walked and
-    who stood to fire, for separation.
+    who stood to fire, for separation. A walker that separation found blocked by a unit that does not give way
+    (``STANCE_BLOCKED``) steers round it (``_steer``), or waits.
 
     Simultaneous: whether a unit is in range and where its target stands are read from ``x0, y0``, the positions
-    when the phase began. Read live, the lower slots (red) would move first and the higher slots would find the gap
-    already closed, so red always advanced further than blue in a mirrored fight. (Group arrival, the other way a
-    move completes, is decided where units bump: in ``_separation``.)
+    when the phase began, and who stands and who walks is decided for every unit before anyone steps (steering reads
+    it). Read live, the lower slots (red) would move first and the higher slots would find the gap already closed,
+    so red always advanced further than blue in a mirrored fight. (Group arrival, the other way a move completes, is
+    decided where units bump: in ``_separation``.)
     """
-    alive, x, y, x0, y0, stance = r.alive, r.x, r.y, r.x0, r.y0, r.stance
+    alive, x, y, x0, y0, stance, side = r.alive, r.x, r.y, r.x0, r.y0, r.stance, r.side
     order, order_x, order_y, target = r.order, r.order_x, r.order_y, r.target
     walk, next_hop, los, open_field = terrain.walk, terrain.next_hop, terrain.los, terrain.open_field
     for i in range(n):
         x0[i] = x[i]
         y0[i] = y[i]
-        stance[i] = STANCE_NONE
     for i in range(n):
-        if not alive[i]:
-            continue
-        speed = slot_stats[i, _SPEED]
-        o = order[i]
-        if speed <= 0.0 or o == ORDER_HOLD:
+        blocked = stance[i] & STANCE_BLOCKED
+        stance[i] = STANCE_NONE
+        if not alive[i] or slot_stats[i, _SPEED] <= 0.0 or order[i] == ORDER_HOLD:
             continue
         j = target[i]
+        o = order[i]
         if j >= 0:
             if _within(x0[i], y0[i], x0[j], y0[j],
                        slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
                 stance[i] = STANCE_FIRING  # in range: stand and act
                 continue
-            gx, gy = x0[j], y0[j]
         elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
-            gx, gy = order_x[i], order_y[i]
-            dx, dy = gx - x[i], gy - y[i]
+            dx, dy = order_x[i] - x0[i], order_y[i] - y0[i]
             if dx * dx + dy * dy <= _ARRIVE * _ARRIVE:
                 order[i] = ORDER_IDLE
                 continue
         else:
             continue
+        stance[i] = STANCE_WALKED | blocked
+    centre_x = 0.5 * walk.shape[1]
+    for i in range(n):
+        if stance[i] & STANCE_KIND != STANCE_WALKED:
+            continue
+        j = target[i]
+        if j >= 0:
+            gx, gy = x0[j], y0[j]
+        else:
+            gx, gy = order_x[i], order_y[i]
         mover = int(slot_stats[i, _MOVER])
         if mover == MOVER_AIR or open_field[mover]:  # checked here: even an early-returning call costs
             wx, wy = gx, gy
@@ -544,10 +631,21 @@ def _movement(n, r, slot_stats, terrain):
         dx, dy = wx - x[i], wy - y[i]
         d = math.sqrt(dx * dx + dy * dy)
         if d < 1e-12:
+            stance[i] = STANCE_NONE
             continue
-        step = min(speed, d)
-        x[i], y[i] = _slide(x[i], y[i], x[i] + dx / d * step, y[i] + dy / d * step, mover, walk)
-        stance[i] = STANCE_WALKED
+        step = min(slot_stats[i, _SPEED], d)
+        ux, uy = dx / d, dy / d
+        if stance[i] & STANCE_BLOCKED:
+            vx, vy = _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_stats, centre_x)
+            if vx == 0.0 and vy == 0.0:
+                stance[i] = STANCE_BLOCKED  # waits: stands this loop, and looks again next loop
+                continue
+            if vx != ux or vy != uy:
+                stance[i] = STANCE_WALKED | STANCE_BLOCKED  # going round: keeps looking until straight is free
+            else:
+                stance[i] = STANCE_WALKED
+            ux, uy = vx, vy
+        x[i], y[i] = _slide(x[i], y[i], x[i] + ux * step, y[i] + uy * step, mover, walk)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -582,11 +680,11 @@ def _push_weights(i, j, side, order, stance, slot_stats):
     SC2 (docs/engine_rules.md, section 1): units on hold or rooted are not pushed. Every SMAC unit has the same push
     priority, so enemies push nobody: a unit that walked into an enemy is put back (when neither walked, both shoved
     there by their own side, they share it, an approximation). Among own units a walker shoves an idle one but not
-    one standing to fire; walkers flow round those.
+    one standing to fire; walkers steer round those (``_steer``).
     """
-    wi = 1.0 if slot_stats[i, _SPEED] > 0.0 and order[i] != ORDER_HOLD else 0.0
-    wj = 1.0 if slot_stats[j, _SPEED] > 0.0 and order[j] != ORDER_HOLD else 0.0
-    si, sj = stance[i], stance[j]
+    wi = 1.0 if _movable(i, order, slot_stats) else 0.0
+    wj = 1.0 if _movable(j, order, slot_stats) else 0.0
+    si, sj = stance[i] & STANCE_KIND, stance[j] & STANCE_KIND
     if side[i] != side[j]:
         if si == STANCE_WALKED or sj == STANCE_WALKED:
             if si != STANCE_WALKED:
@@ -689,6 +787,11 @@ def _separation(n, r, slot_stats, walk, max_radius):
                 pushed = True
             wi, wj = _push_weights(i, j, side, order, stance, slot_stats)
             worst = max(worst, _push_apart(i, j, dx, dy, d2, rr, wi, wj, push_x, push_y))
+            # A walker put back by a unit that does not give way steers round it next loop (``_movement``).
+            if wj == 0.0 and wi > 0.0 and stance[i] & STANCE_KIND == STANCE_WALKED:
+                stance[i] |= STANCE_BLOCKED
+            elif wi == 0.0 and wj > 0.0 and stance[j] & STANCE_KIND == STANCE_WALKED:
+                stance[j] |= STANCE_BLOCKED
             if side[i] == side[j]:
                 if _bump(i, j, order, order_x, order_y, target, x, y):
                     order[i] = _ARRIVING

@@ -23,8 +23,10 @@ NO_UNIT = -1
 
 # What a unit did in the current game loop's movement (``BattleState.stance``), read by separation: SC2 lets a unit
 # that walks push its own side's idle units but not units standing to fire, and enemies push nobody
-# (docs/engine_rules.md, section 1).
+# (docs/engine_rules.md, section 1). The kind is ``stance & STANCE_KIND``; ``STANCE_BLOCKED`` is a flag on top of it:
+# the unit walked into a unit that does not give way, so its next step steers round (section 1, C11).
 STANCE_NONE, STANCE_WALKED, STANCE_FIRING = 0, 1, 2
+STANCE_KIND, STANCE_BLOCKED = 3, 4
 
 
 class BattleState(NamedTuple):
@@ -49,7 +51,7 @@ class BattleState(NamedTuple):
     fired_at: np.ndarray  # int32: last unit fired at (or healed) during the latest env step, for rendering
     burst: np.ndarray  # bool: a baneling that exploded during the latest env step
     alive_at_loop: np.ndarray  # bool scratch: alive when the current game loop began (simultaneous fire)
-    stance: np.ndarray  # int8 scratch: STANCE_* of the current loop's movement (who may push whom)
+    stance: np.ndarray  # int8: STANCE_* of the current loop's movement (who may push whom), plus the blocked flag
     pending_target: np.ndarray  # int32: unit a delayed hit will land on (missile in flight, zealot's second blade)
     pending_eta: np.ndarray  # int32: game loops until that hit lands
     pending_hits: np.ndarray  # int8: how many of the weapon's hits land then
