@@ -44,6 +44,10 @@ replay in the file. ``benchmarks/results/qmix_5m_vs_6m_replay.json`` was made fr
     # <goround>/smac_hard_gym/engine/kernels.py`
     PYTHONPATH=<goround> $PY $ARGS --json $OUT --key go_round/qmix
     PYTHONPATH=<goround> $PY $ARGS --policy focus_lowest --json $OUT --key go_round/focus_lowest
+    # the engine with steering (docs/engine_rules.md C11): this repository at commit f8a37e9, installed with
+    # `<epymarl-venv>/bin/python -m pip install --no-deps --target <steering> .`
+    PYTHONPATH=<steering> $PY $ARGS --epymarl <epymarl-dir> --json $OUT --key steering/qmix
+    PYTHONPATH=<steering> $PY $ARGS --policy focus_lowest --json $OUT --key steering/focus_lowest
 """
 
 from __future__ import annotations
