@@ -522,7 +522,8 @@ def _stands_in_way(k, i, side, order, stance, slot_stats):
 def _blocker(n, i, nx, ny, side, alive, x, y, order, target, stance, slot_stats):
     """The unit that walker i, stepping to (nx, ny), would walk into most deeply among those that stand in its way
     (``_stands_in_way``; its own target excepted: it walks to that one), or -1. A step that does not bring it closer
-    to a unit it already touches is free: it may slide along it."""
+    to a unit it already touches is free: it may slide along it. ``x, y``: the positions when movement began (units
+    that stand in the way do not move in it, and the walker has not stepped yet)."""
     px, py = x[i], y[i]
     ri = slot_stats[i, _RADIUS]
     mover = slot_stats[i, _MOVER]
@@ -553,7 +554,7 @@ def _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_st
     walker waits its turn (SC2's movers flow round units standing to fire where there is room, C11).
 
     A unit dead ahead is passed on the side that heads north (higher y), or, heading along y, toward the map's
-    centre line ``centre_x``: rules that a battle mirrored through that line mirrors."""
+    centre line ``centre_x``: rules that a battle mirrored through that line mirrors. ``x, y`` as in ``_blocker``."""
     px, py = x[i], y[i]
     k = _blocker(n, i, px + ux * step, py + uy * step, side, alive, x, y, order, target, stance, slot_stats)
     if k < 0:
@@ -616,7 +617,7 @@ def _movement(n, r, slot_stats, terrain):
         stance[i] = STANCE_WALKED | blocked
     centre_x = 0.5 * walk.shape[1]
     for i in range(n):
-        if stance[i] & STANCE_KIND != STANCE_WALKED:
+        if (stance[i] & STANCE_KIND) != STANCE_WALKED:
             continue
         j = target[i]
         if j >= 0:
@@ -636,7 +637,7 @@ def _movement(n, r, slot_stats, terrain):
         step = min(slot_stats[i, _SPEED], d)
         ux, uy = dx / d, dy / d
         if stance[i] & STANCE_BLOCKED:
-            vx, vy = _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_stats, centre_x)
+            vx, vy = _steer(n, i, ux, uy, step, side, alive, x0, y0, order, target, stance, slot_stats, centre_x)
             if vx == 0.0 and vy == 0.0:
                 stance[i] = STANCE_BLOCKED  # waits: stands this loop, and looks again next loop
                 continue
@@ -788,9 +789,9 @@ def _separation(n, r, slot_stats, walk, max_radius):
             wi, wj = _push_weights(i, j, side, order, stance, slot_stats)
             worst = max(worst, _push_apart(i, j, dx, dy, d2, rr, wi, wj, push_x, push_y))
             # A walker put back by a unit that does not give way steers round it next loop (``_movement``).
-            if wj == 0.0 and wi > 0.0 and stance[i] & STANCE_KIND == STANCE_WALKED:
+            if wj == 0.0 and wi > 0.0 and (stance[i] & STANCE_KIND) == STANCE_WALKED:
                 stance[i] |= STANCE_BLOCKED
-            elif wi == 0.0 and wj > 0.0 and stance[j] & STANCE_KIND == STANCE_WALKED:
+            elif wi == 0.0 and wj > 0.0 and (stance[j] & STANCE_KIND) == STANCE_WALKED:
                 stance[j] |= STANCE_BLOCKED
             if side[i] == side[j]:
                 if _bump(i, j, order, order_x, order_y, target, x, y):
