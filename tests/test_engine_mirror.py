@@ -17,7 +17,7 @@ import pytest
 from engine_helpers import battle_rows_of, engine_with
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, BattleEngine, Commands
-from smac_hard_gym.engine.kernels import _separation
+from smac_hard_gym.engine.kernels import POSITION_GRID, _separation
 from smac_hard_gym.engine.state import ORDER_IDLE
 from smac_hard_gym.engine.units import STATS, unit_index
 from smac_hard_gym.maps import load_map
@@ -98,8 +98,9 @@ def test_separation_pushes_do_not_depend_on_slot_order():
     for x, y in results[1:]:
         np.testing.assert_allclose(x, results[0][0], atol=1e-12)
         np.testing.assert_allclose(y, results[0][1], atol=1e-12)
-    # Hand-computed for the pair (0, 1): overlap 0.75 - 0.6 = 0.15 along x, half each.
-    assert results[0][0][0] == pytest.approx(10.0 - 0.075)
+    # Hand-computed for the pair (0, 1): overlap 0.75 - 0.6 = 0.15 along x, half each; 9.925 lands on SC2's
+    # position grid (1/4096) as 40653 / 4096.
+    assert results[0][0][0] == np.rint((10.0 - 0.075) * POSITION_GRID) / POSITION_GRID == 40653 / 4096
 
 
 def _medivac_save(marine_health: float) -> tuple[bool, float]:

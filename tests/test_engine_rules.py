@@ -11,6 +11,7 @@ import pytest
 from engine_helpers import engine_with
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_HOLD, CMD_MOVE
+from smac_hard_gym.engine.kernels import POSITION_GRID
 
 STEP = 0.140625
 
@@ -108,12 +109,45 @@ def test_a_walker_goes_through_a_gap_with_room_and_waits_behind_one_without(wall
     _order(engine, walker, CMD_MOVE, point=(13.0, 16.6))
     closest = _closest_approach(engine, list(range(len(wall))), walker, 60)
     st = engine.state
-    assert closest >= 0.75 - 1e-9
+    assert closest >= 0.75 - 1 / POSITION_GRID  # positions end each loop on SC2's 1/4096 grid
     assert [(st.x[0, k], st.y[0, k]) for k in range(len(wall))] == [(10.0, y) for y in wall]
     if passes:
         assert st.x[0, walker] > 10.75
     else:
         assert st.x[0, walker] <= 10.0 - np.sqrt(0.75**2 - 0.6875**2) + 1e-9
+
+
+def _on_grid(v: float) -> float:
+    """v rounded to SC2's position grid (1/4096, half to even), as every move lands."""
+    return float(np.rint(v * POSITION_GRID) / POSITION_GRID)
+
+
+def test_a_walker_in_a_pocket_between_two_units_slides_out_along_one_and_goes_round():
+    # Marines A (10, 16.4) and C (10, 15.6) hold, 0.8 apart: 0.05 between them, no room for a marine. B walks from
+    # (8, 16) to (13, 16) into the crack. In loop 10 it overlaps both by 0.75 - hypot(0.59375, 0.4) and is put back
+    # by the sum of the two pushes: x = 9.40625 - 2 * depth * 0.59375 / hypot(0.59375, 0.4) = 9.3497 (on the grid:
+    # 9.349609375). In loop 11 every turn up to 90 degrees either way closes on A or C (the 90-degree turns end
+    # 0.700 from them), so it slides along A, the unit in its way (A and C equally deep; the first found): the
+    # tangent on C's side closes on C, the one on A's far side is free (0.776 from A, moving away from C). It keeps
+    # that side, goes round A and reaches its point. With turns up to 90 degrees only, it waited at 9.3497 for ever.
+    engine = engine_with(["Marine_RL"] * 3, ["Medivac"], {0: (10.0, 16.4), 1: (10.0, 15.6), 2: (8.0, 16.0),
+                                                         3: (14.0, 4.0)})
+    _order(engine, 0, CMD_HOLD)
+    _order(engine, 1, CMD_HOLD)
+    _order(engine, 2, CMD_MOVE, point=(13.0, 16.0))
+    _run(engine, 10)
+    st = engine.state
+    d = np.hypot(10.0 - 9.40625, 0.4)
+    x10 = _on_grid(9.40625 - 2 * (0.75 - d) * (10.0 - 9.40625) / d)
+    assert (st.x[0, 2], st.y[0, 2]) == (x10, 16.0)
+    _run(engine, 1)
+    cx, cy = 10.0 - x10, 0.4  # A seen from B
+    c = np.hypot(cx, cy)
+    assert (st.x[0, 2], st.y[0, 2]) == (_on_grid(x10 - cy / c * STEP), _on_grid(16.0 + cx / c * STEP))
+    closest = _closest_approach(engine, [0, 1], 2, 60)
+    assert closest >= 0.75 - 1 / POSITION_GRID
+    assert [(st.x[0, k], st.y[0, k]) for k in (0, 1)] == [(10.0, 16.4), (10.0, 15.6)]
+    assert np.hypot(st.x[0, 2] - 13.0, st.y[0, 2] - 16.0) <= 0.05
 
 
 # --- Missiles (section 2): the stalker's, hydralisk's and marauder's shots fly; they home, never miss, and land

@@ -9,6 +9,7 @@ import pytest
 from engine_helpers import engine_with
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, CMD_HOLD, CMD_MOVE
+from smac_hard_gym.engine.kernels import POSITION_GRID
 from smac_hard_gym.engine.state import ORDER_IDLE
 
 R = 0.375  # marine radius
@@ -63,7 +64,9 @@ def test_response_to_a_hit_from_beyond_scan_range():
     engine.step(n_loops=10)
     assert engine.state.health[0, 1] == 35.0
     engine.step(n_loops=1)
-    assert engine.state.x[0, 1] == x0 and engine.state.health[0, 1] == pytest.approx(35.0 - 13.0)
+    # It has not moved: the same point on SC2's position grid (1/4096, kernels.POSITION_GRID).
+    assert engine.state.x[0, 1] == pytest.approx(x0, abs=0.5 / POSITION_GRID)
+    assert engine.state.health[0, 1] == pytest.approx(35.0 - 13.0)
     engine.step(n_loops=1)
     assert engine.state.target[0, 1] == 0 and engine.state.x[0, 1] < x0
 
@@ -131,7 +134,8 @@ def test_an_attack_moving_unit_does_not_turn_on_a_shooter_beyond_its_scan_range(
     engine.step()
     assert engine.state.health[0, 1] < 35.0  # it was hit
     assert engine.state.target[0, 1] == -1  # and does not answer
-    assert engine.state.x[0, 1] == pytest.approx(16.8) and engine.state.y[0, 1] > 10.5  # walking on to its point
+    assert engine.state.x[0, 1] == pytest.approx(16.8, abs=0.5 / POSITION_GRID)  # walking on to its point
+    assert engine.state.y[0, 1] > 10.5
 
 
 def test_alternating_aggro_pulls_the_zealot_back_and_forth():

@@ -72,7 +72,10 @@ from smac_hard_gym.engine.state import (
     STANCE_BLOCKED,
     STANCE_FIRING,
     STANCE_KIND,
+    STANCE_LEFT,
     STANCE_NONE,
+    STANCE_RIGHT,
+    STANCE_SIDE,
     STANCE_WALKED,
 )
 from smac_hard_gym.engine.terrain import MOVER_AIR
@@ -104,7 +107,10 @@ _ARRIVE = 0.05  # a move order is complete this close to its point
 _CROWD_ARRIVE = 3.0  # ... or this close, bumping into a unit of its side that has arrived (SC2's group arrival)
 _ARRIVING = 99  # order of a unit that arrived during a separation pass (idle once the pass ends)
 _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the scan range
-_EDGE = 1e-4  # keeps positions strictly inside the map
+# SC2 holds numbers in 20.12 fixed point (SC2Mapster, "Types/Fixed": the Galaxy type and the game files' fixed32);
+# positions are snapped to that grid every loop (docs/engine_rules.md, C12).
+POSITION_GRID = 4096.0
+_EDGE = 1.0 / POSITION_GRID  # keeps positions strictly inside the map (a grid point)
 _INF = 1e300
 _SETTLE_PASSES = 16  # at most this many extra separation passes after the last loop of an env step
 _SETTLED = 0.05  # ... stopping once no overlap is deeper than this
@@ -488,10 +494,15 @@ def _waypoint(mover, px, py, gx, gy, walk, next_hop, los):
 @helper
 def _slide(px, py, nx, ny, mover, walk):
     """Where a unit at (px, py) heading to (nx, ny) ends up: there if its centre stays walkable, else sliding
-    along one axis, else staying put."""
+    along one axis, else staying put.
+
+    Every move lands on SC2's fixed-point grid (``POSITION_GRID``), rounded half to even: a crowd pressing round
+    units that stand turns rounding error into ever larger differences from loop to loop, and on the grid the same
+    battle mirrored through the map's centre line keeps landing on the mirror image (the grid and even rounding are
+    symmetric about any integer width)."""
     mx, my = walk.shape[1], walk.shape[2]
-    nx = min(max(nx, _EDGE), mx - _EDGE)
-    ny = min(max(ny, _EDGE), my - _EDGE)
+    nx = np.rint(min(max(nx, _EDGE), mx - _EDGE) * POSITION_GRID) / POSITION_GRID
+    ny = np.rint(min(max(ny, _EDGE), my - _EDGE) * POSITION_GRID) / POSITION_GRID
     if mover == MOVER_AIR or walk[mover, int(nx), int(ny)]:
         return nx, ny
     if walk[mover, int(nx), int(py)]:
@@ -548,33 +559,50 @@ def _blocker(n, i, nx, ny, side, alive, x, y, order, target, stance, slot_stats)
 
 
 @helper
-def _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_stats, centre_x):
-    """The heading of blocked walker i (desired unit heading (ux, uy), ``step`` long): straight if free, else the
-    nearest free turn of 30, 60 or 90 degrees, first away from the unit in the way; (0, 0) if none is free, and the
-    walker waits its turn (SC2's movers flow round units standing to fire where there is room, C11).
+def _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_stats, centre_x, turn_side):
+    """The heading of blocked walker i (desired unit heading (ux, uy), ``step`` long) and the side it turns to
+    (+1 left, -1 right, 0 none): straight if free; else the nearest free turn of 30, 60 or 90 degrees; else a slide
+    along the unit in the way (its tangent), which takes a walker out of a pocket between two units where every turn
+    up to 90 degrees closes on one of them; (0, 0, 0) if nothing is free, and the walker waits its turn (SC2's
+    movers flow round units standing to fire where there is room, C11).
 
-    A unit dead ahead is passed on the side that heads north (higher y), or, heading along y, toward the map's
-    centre line ``centre_x``: rules that a battle mirrored through that line mirrors. ``x, y`` as in ``_blocker``."""
+    A walker already going round (``turn_side`` != 0) keeps to that side, so it does not swing back into the pocket
+    it left. Otherwise it tries the side away from the unit in the way first; a unit dead ahead is passed on the side
+    that heads north (higher y), or, heading along y, toward the map's centre line ``centre_x``: rules that a battle
+    mirrored through that line mirrors. ``x, y`` as in ``_blocker``."""
     px, py = x[i], y[i]
     k = _blocker(n, i, px + ux * step, py + uy * step, side, alive, x, y, order, target, stance, slot_stats)
     if k < 0:
-        return ux, uy
+        return ux, uy, 0.0
     cross = ux * (y[k] - py) - uy * (x[k] - px)  # > 0: the unit is on the walker's left, so turn right first
-    if cross != 0.0:
+    if turn_side != 0.0:
+        first = turn_side
+    elif cross != 0.0:
         first = -1.0 if cross > 0.0 else 1.0
     elif ux != 0.0:
         first = 1.0 if ux > 0.0 else -1.0
     else:
         first = 1.0 if -uy * (centre_x - px) >= 0.0 else -1.0
+    sides = 1 if turn_side != 0.0 else 2
     for turn in range(1, 4):
         angle = turn * (math.pi / 6.0)
         c, s = math.cos(angle), math.sin(angle)
-        for sign in (first, -first):
+        for t in range(sides):
+            sign = first if t == 0 else -first
             vx, vy = ux * c - uy * s * sign, ux * s * sign + uy * c
             if _blocker(n, i, px + vx * step, py + vy * step, side, alive, x, y, order, target, stance,
                         slot_stats) < 0:
-                return vx, vy
-    return 0.0, 0.0
+                return vx, vy, sign
+    cx, cy = x[k] - px, y[k] - py
+    d = math.sqrt(cx * cx + cy * cy)
+    if d > 0.0:
+        for t in range(sides):
+            sign = first if t == 0 else -first
+            vx, vy = -cy / d * sign, cx / d * sign  # the unit in the way turned 90 degrees toward that side
+            if _blocker(n, i, px + vx * step, py + vy * step, side, alive, x, y, order, target, stance,
+                        slot_stats) < 0:
+                return vx, vy, sign
+    return 0.0, 0.0, 0.0
 
 
 @inline
@@ -596,7 +624,7 @@ def _movement(n, r, slot_stats, terrain):
         x0[i] = x[i]
         y0[i] = y[i]
     for i in range(n):
-        blocked = stance[i] & STANCE_BLOCKED
+        blocked = stance[i] & (STANCE_BLOCKED | STANCE_SIDE)
         stance[i] = STANCE_NONE
         if not alive[i] or slot_stats[i, _SPEED] <= 0.0 or order[i] == ORDER_HOLD:
             continue
@@ -637,12 +665,17 @@ def _movement(n, r, slot_stats, terrain):
         step = min(slot_stats[i, _SPEED], d)
         ux, uy = dx / d, dy / d
         if stance[i] & STANCE_BLOCKED:
-            vx, vy = _steer(n, i, ux, uy, step, side, alive, x0, y0, order, target, stance, slot_stats, centre_x)
+            kept = stance[i] & STANCE_SIDE
+            turn_side = 1.0 if kept == STANCE_LEFT else -1.0 if kept == STANCE_RIGHT else 0.0
+            vx, vy, turned = _steer(n, i, ux, uy, step, side, alive, x0, y0, order, target, stance, slot_stats,
+                                    centre_x, turn_side)
             if vx == 0.0 and vy == 0.0:
-                stance[i] = STANCE_BLOCKED  # waits: stands this loop, and looks again next loop
+                stance[i] = STANCE_BLOCKED  # waits: stands this loop, and looks again (either side) next loop
                 continue
-            if vx != ux or vy != uy:
-                stance[i] = STANCE_WALKED | STANCE_BLOCKED  # going round: keeps looking until straight is free
+            if turned > 0.0:  # going round: keeps looking, on the same side, until straight is free
+                stance[i] = STANCE_WALKED | STANCE_BLOCKED | STANCE_LEFT
+            elif turned < 0.0:
+                stance[i] = STANCE_WALKED | STANCE_BLOCKED | STANCE_RIGHT
             else:
                 stance[i] = STANCE_WALKED
             ux, uy = vx, vy

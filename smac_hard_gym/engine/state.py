@@ -24,9 +24,12 @@ NO_UNIT = -1
 # What a unit did in the current game loop's movement (``BattleState.stance``), read by separation: SC2 lets a unit
 # that walks push its own side's idle units but not units standing to fire, and enemies push nobody
 # (docs/engine_rules.md, section 1). The kind is ``stance & STANCE_KIND``; ``STANCE_BLOCKED`` is a flag on top of it:
-# the unit walked into a unit that does not give way, so its next step steers round (section 1, C11).
+# the unit walked into a unit that does not give way, so its next step steers round (section 1, C11). While it goes
+# round, ``STANCE_LEFT`` or ``STANCE_RIGHT`` keeps the side it took, so it does not swing back into the pocket it
+# left.
 STANCE_NONE, STANCE_WALKED, STANCE_FIRING = 0, 1, 2
-STANCE_KIND, STANCE_BLOCKED = 3, 4
+STANCE_KIND, STANCE_BLOCKED, STANCE_LEFT, STANCE_RIGHT = 3, 4, 8, 16
+STANCE_SIDE = STANCE_LEFT | STANCE_RIGHT
 
 
 class BattleState(NamedTuple):
