@@ -18,7 +18,7 @@ from numba import njit, prange
 import smac_hard_gym.engine.battle as battle_module
 from smac_hard_gym.engine import BattleEngine, Commands
 from smac_hard_gym.engine.batch_ops import count_alive
-from smac_hard_gym.engine.kernels import _separation, _sort_by_x, step_kernels_for
+from smac_hard_gym.engine.kernels import POSITION_GRID, _separation, _sort_by_x, step_kernels_for
 from smac_hard_gym.engine.scheduling import fetch_add
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_MOVE, ORDER_HOLD, ORDER_IDLE, BattleState
 from smac_hard_gym.engine.units import STATS, S, unit_index
@@ -98,6 +98,10 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     walk = np.ones((2, 128, 128), dtype=np.uint8)
     order = np.where(hold, ORDER_HOLD, ORDER_IDLE).astype(np.int8)
     expected_x, expected_y, expected_worst = _reference_pass(names, alive, hold, x, y)
+    # A pushed unit lands on SC2's position grid (1/4096, half to even); one left alone stays where it was.
+    moved = (expected_x != x) | (expected_y != y)
+    expected_x = np.where(moved, np.rint(expected_x * POSITION_GRID) / POSITION_GRID, x)
+    expected_y = np.where(moved, np.rint(expected_y * POSITION_GRID) / POSITION_GRID, y)
     rows = battle_rows_of(x, y, alive, order)
     worst = _separation(len(names), rows, slot_stats, walk, slot_stats[:, S["radius"]].max())
     np.testing.assert_allclose(rows.x, expected_x, rtol=0, atol=1e-12)
@@ -120,7 +124,9 @@ def test_sweep_passes_clear_a_dense_crowd():
             break
     x, y = rows.x, rows.y
     dist = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) + np.eye(n) * 10
-    assert dist.min() > 0.75 - 1e-5
+    # Positions on SC2's 1/4096 grid leave slivers a push cannot round away (about 1e-3 here); a pair the sweep
+    # missed would keep its overlap, up to 0.75.
+    assert dist.min() > 0.75 - 0.005
 
 
 @pytest.mark.parametrize("dead_x", [10.3, 9.7])  # the dead unit after or before the living one in x order
