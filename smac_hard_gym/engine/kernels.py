@@ -108,7 +108,7 @@ _CROWD_ARRIVE = 3.0  # ... or this close, bumping into a unit of its side that h
 _ARRIVING = 99  # order of a unit that arrived during a separation pass (idle once the pass ends)
 _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the scan range
 # SC2 holds numbers in 20.12 fixed point (SC2Mapster, "Types/Fixed": the Galaxy type and the game files' fixed32);
-# positions are snapped to that grid every loop (docs/engine_rules.md, C12).
+# every move (``_slide``) lands on that grid (docs/engine_rules.md, C12).
 POSITION_GRID = 4096.0
 _EDGE = 1.0 / POSITION_GRID  # keeps positions strictly inside the map (a grid point)
 _INF = 1e300
