@@ -27,7 +27,6 @@ from pathlib import Path
 import numpy as np
 
 CLASSES = ("fired", "in_reach", "no_target", "walking", "stalled")
-LOOPS_PER_STEP = 8
 
 
 def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str, float]]:
@@ -52,7 +51,7 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
             obs, _ = venv.reset(seed=TEST_SEED_BASE + episode)
             utype = st.utype[0]
             reach = STATS[utype, S["range"]] + STATS[utype, S["radius"]]
-            stall = 0.25 * LOOPS_PER_STEP * STATS[utype, S["speed"]]
+            stall = 0.25 * venv.core.backend.step_mul * STATS[utype, S["speed"]]
             red = np.arange(utype.size) < venv.core.n_red
             while True:
                 x, y, alive, target = st.x[0].copy(), st.y[0].copy(), st.alive[0].copy(), st.target[0].copy()
