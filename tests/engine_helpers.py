@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from smac_hard_gym.engine import BattleEngine
-from smac_hard_gym.engine.kernels import Rows, battle_rows
+from smac_hard_gym.engine.kernels import POSITION_GRID, Rows, battle_rows
 from smac_hard_gym.engine.state import Scratch, allocate_state
 from smac_hard_gym.maps import parse_map
 
@@ -95,3 +95,8 @@ def overlaps(engine: BattleEngine, b: int) -> list[tuple[int, int, float]]:
             if depth > 0:
                 out.append((int(i), int(j), float(depth)))
     return out
+
+
+def on_grid(v):
+    """v (a number or an array) rounded to SC2's position grid, 1/4096, half to even: where every move lands."""
+    return np.rint(np.asarray(v) * POSITION_GRID) / POSITION_GRID

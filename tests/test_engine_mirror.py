@@ -14,10 +14,10 @@ import dataclasses
 
 import numpy as np
 import pytest
-from engine_helpers import battle_rows_of, engine_with
+from engine_helpers import battle_rows_of, engine_with, on_grid
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, BattleEngine, Commands
-from smac_hard_gym.engine.kernels import POSITION_GRID, _separation
+from smac_hard_gym.engine.kernels import _separation
 from smac_hard_gym.engine.state import ORDER_IDLE
 from smac_hard_gym.engine.units import STATS, unit_index
 from smac_hard_gym.maps import load_map
@@ -100,7 +100,7 @@ def test_separation_pushes_do_not_depend_on_slot_order():
         np.testing.assert_allclose(y, results[0][1], atol=1e-12)
     # Hand-computed for the pair (0, 1): overlap 0.75 - 0.6 = 0.15 along x, half each; 9.925 lands on SC2's
     # position grid (1/4096) as 40653 / 4096.
-    assert results[0][0][0] == np.rint((10.0 - 0.075) * POSITION_GRID) / POSITION_GRID == 40653 / 4096
+    assert results[0][0][0] == on_grid(10.0 - 0.075) == 40653 / 4096
 
 
 def _medivac_save(marine_health: float) -> tuple[bool, float]:

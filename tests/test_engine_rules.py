@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from engine_helpers import engine_with
+from engine_helpers import engine_with, on_grid
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_HOLD, CMD_MOVE
 from smac_hard_gym.engine.kernels import POSITION_GRID
@@ -117,11 +117,6 @@ def test_a_walker_goes_through_a_gap_with_room_and_waits_behind_one_without(wall
         assert st.x[0, walker] <= 10.0 - np.sqrt(0.75**2 - 0.6875**2) + 1e-9
 
 
-def _on_grid(v: float) -> float:
-    """v rounded to SC2's position grid (1/4096, half to even), as every move lands."""
-    return float(np.rint(v * POSITION_GRID) / POSITION_GRID)
-
-
 def test_a_walker_in_a_pocket_between_two_units_slides_out_along_one_and_goes_round():
     # Marines A (10, 16.4) and C (10, 15.6) hold, 0.8 apart: 0.05 between them, no room for a marine. B walks from
     # (8, 16) to (13, 16) into the crack. In loop 10 it overlaps both by 0.75 - hypot(0.59375, 0.4) and is put back
@@ -138,12 +133,12 @@ def test_a_walker_in_a_pocket_between_two_units_slides_out_along_one_and_goes_ro
     _run(engine, 10)
     st = engine.state
     d = np.hypot(10.0 - 9.40625, 0.4)
-    x10 = _on_grid(9.40625 - 2 * (0.75 - d) * (10.0 - 9.40625) / d)
+    x10 = on_grid(9.40625 - 2 * (0.75 - d) * (10.0 - 9.40625) / d)
     assert (st.x[0, 2], st.y[0, 2]) == (x10, 16.0)
     _run(engine, 1)
     cx, cy = 10.0 - x10, 0.4  # A seen from B
     c = np.hypot(cx, cy)
-    assert (st.x[0, 2], st.y[0, 2]) == (_on_grid(x10 - cy / c * STEP), _on_grid(16.0 + cx / c * STEP))
+    assert (st.x[0, 2], st.y[0, 2]) == (on_grid(x10 - cy / c * STEP), on_grid(16.0 + cx / c * STEP))
     closest = _closest_approach(engine, [0, 1], 2, 60)
     assert closest >= 0.75 - 1 / POSITION_GRID
     assert [(st.x[0, k], st.y[0, k]) for k in (0, 1)] == [(10.0, 16.4), (10.0, 15.6)]

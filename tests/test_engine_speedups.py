@@ -12,13 +12,13 @@ import math
 
 import numpy as np
 import pytest
-from engine_helpers import battle_rows_of, engine_with
+from engine_helpers import battle_rows_of, engine_with, on_grid
 from numba import njit, prange
 
 import smac_hard_gym.engine.battle as battle_module
 from smac_hard_gym.engine import BattleEngine, Commands
 from smac_hard_gym.engine.batch_ops import count_alive
-from smac_hard_gym.engine.kernels import POSITION_GRID, _separation, _sort_by_x, step_kernels_for
+from smac_hard_gym.engine.kernels import _separation, _sort_by_x, step_kernels_for
 from smac_hard_gym.engine.scheduling import fetch_add
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_MOVE, ORDER_HOLD, ORDER_IDLE, BattleState
 from smac_hard_gym.engine.units import STATS, S, unit_index
@@ -100,8 +100,8 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     expected_x, expected_y, expected_worst = _reference_pass(names, alive, hold, x, y)
     # A pushed unit lands on SC2's position grid (1/4096, half to even); one left alone stays where it was.
     moved = (expected_x != x) | (expected_y != y)
-    expected_x = np.where(moved, np.rint(expected_x * POSITION_GRID) / POSITION_GRID, x)
-    expected_y = np.where(moved, np.rint(expected_y * POSITION_GRID) / POSITION_GRID, y)
+    expected_x = np.where(moved, on_grid(expected_x), x)
+    expected_y = np.where(moved, on_grid(expected_y), y)
     rows = battle_rows_of(x, y, alive, order)
     worst = _separation(len(names), rows, slot_stats, walk, slot_stats[:, S["radius"]].max())
     np.testing.assert_allclose(rows.x, expected_x, rtol=0, atol=1e-12)
