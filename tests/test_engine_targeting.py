@@ -203,3 +203,95 @@ def test_passive_learner_units_ignore_attackers_even_while_attack_moving_past_a_
     engine.place(0, 1, target=0)
     engine.step(n_loops=1)
     assert engine.state.target[0, 0] == -1
+
+
+# --- Call for help (SC2: a unit hit by a weapon calls its allies within CallForHelpRadius 4, at most every
+# CallForHelpPeriod 2 s; those whose weapon is acquiring, idle or attack-moving, acquire the attacker;
+# docs/engine_rules.md C13).
+# A red stalker (passive, so it answers nothing itself) is ordered onto blue zealot A, which holds position 6.8
+# beyond the stalker's edge (outside A's scan range, 5). The stalker walks 2.9531 / 16 = 0.1846 a loop from 7.925
+# (centre to centre) until within 6 + 0.625 + 0.5 = 7.125: 7.002 after the 5th loop after the order, when it fires;
+# the missile flies ceil(7.002 / 1.171875) = 6 loops and lands in the 11th; the stalker fires again every
+# ceil(1.87 * 16) = 30 loops: hits land in loops 11, 41, 71.
+# The helpers are zerglings (radius 0.375), idle and beyond the stalker's reach and scan range (edge >= 7.9).
+_A = (10.0 + 6.8 + 0.625 + 0.5, 16.0)
+
+
+def _stalker_on_held_zealot(helpers: dict[int, tuple[float, float]]):
+    engine = engine_with(["Stalker_RL"], ["Zealot"] + ["Zergling"] * len(helpers),
+                         {0: (10.0, 16.0), 1: _A, **helpers})
+    engine.commands.kind[0, 1] = CMD_HOLD  # A calls for help, but a held unit answers nothing itself
+    engine.step(n_loops=1)
+    engine.commands.clear()
+    _order_attack(engine, 0, 1)
+    return engine
+
+
+def _life(engine, slot: int) -> float:
+    return float(engine.state.health[0, slot] + engine.state.shield[0, slot])
+
+
+def test_a_hit_unit_calls_idle_allies_within_four_of_it():
+    # B 2.0 behind A; D 4.3 to A's side (edge 3.925: inside 4); C 4.5 to the other side (edge 4.125: outside).
+    b, c, d = (_A[0] + 2.0, 16.0), (_A[0], 16.0 + 4.5), (_A[0], 16.0 - 4.3)
+    engine = _stalker_on_held_zealot({2: b, 3: c, 4: d})
+    engine.step(n_loops=10)
+    assert _life(engine, 1) == 150.0 and engine.state.attacker[0, 2] == -1
+    engine.step(n_loops=1)  # loop 11: the hit, and the call
+    assert _life(engine, 1) == 150.0 - 13.0
+    assert engine.state.attacker[0, 2] == 0 and engine.state.attacker[0, 4] == 0
+    assert engine.state.attacker[0, 3] == -1
+    engine.step(n_loops=2)
+    assert engine.state.target[0, 2] == 0 and engine.state.x[0, 2] < b[0]  # B runs at the stalker
+    assert engine.state.target[0, 4] == 0
+    assert engine.state.target[0, 3] == -1 and (engine.state.x[0, 3], engine.state.y[0, 3]) == c
+    assert engine.state.x[0, 1] == _A[0]  # A holds
+
+
+def test_a_call_is_not_answered_by_units_with_an_order():
+    # B (2.0 behind A) holds position, E (2.0 above A) walks away north: neither turns on the stalker.
+    b, e = (_A[0] + 2.0, 16.0), (_A[0], 18.0)
+    engine = _stalker_on_held_zealot({2: b, 3: e})
+    engine.commands.kind[0, 2] = CMD_HOLD
+    engine.commands.kind[0, 3] = CMD_MOVE
+    engine.commands.x[0, 3], engine.commands.y[0, 3] = _A[0], 31.0
+    engine.step(n_loops=13)
+    assert _life(engine, 1) == 150.0 - 13.0
+    assert engine.state.target[0, 2] == -1 and engine.state.x[0, 2] == b[0]
+    assert engine.state.target[0, 3] == -1 and engine.state.y[0, 3] > e[1]
+
+
+def test_a_unit_calls_at_most_once_every_two_seconds():
+    # F is parked far away through the first call (loop 11), then put 2.0 above A: the hit of loop 41 comes 30 loops
+    # after the call (< 32: no call); the hit of loop 71, 60 loops after it, calls again and F answers.
+    engine = _stalker_on_held_zealot({2: (28.0, 28.0)})
+    engine.step(n_loops=11)
+    assert _life(engine, 1) == 150.0 - 13.0
+    engine.place(0, 2, x=_A[0], y=18.0)
+    engine.step(n_loops=30)  # loops 12-41
+    assert _life(engine, 1) == 150.0 - 26.0
+    assert engine.state.attacker[0, 2] == -1
+    engine.step(n_loops=30)  # loops 42-71
+    assert _life(engine, 1) == 150.0 - 39.0
+    assert engine.state.attacker[0, 2] == 0
+
+
+def test_an_attack_moving_ally_acquires_the_attacker_within_its_leash():
+    # G and H walk east on attack-move from the loop before the hit (zergling speed 2.9531 / 16 = 0.185 a loop): at
+    # the hit G stands 19.610 - 10.923 = 8.69 from the stalker (centre to centre), within its scan range 5 + leash 3
+    # + radii 1.0 = 9.0, so it keeps the stalker and runs back at it; H, 10.76 away, acquires it and drops it at its
+    # next look, walking on east.
+    g, h = (_A[0] + 1.5, 16.0), (_A[0] + 3.575, 16.0)
+    engine = _stalker_on_held_zealot({2: g, 3: h})
+    engine.step(n_loops=10)
+    for slot in (2, 3):
+        engine.commands.kind[0, slot] = CMD_ATTACK_MOVE
+        engine.commands.x[0, slot], engine.commands.y[0, slot] = 31.0, 16.0
+    engine.step(n_loops=1)  # loop 11: both step east, then the hit and the call
+    engine.commands.clear()
+    assert _life(engine, 1) == 150.0 - 13.0
+    assert engine.state.target[0, 2] == 0 and engine.state.target[0, 3] == 0
+    x_g, x_h = engine.state.x[0, 2], engine.state.x[0, 3]
+    engine.step(n_loops=2)
+    assert engine.state.target[0, 2] == 0 and engine.state.x[0, 2] < x_g
+    assert engine.state.target[0, 3] == -1 and engine.state.x[0, 3] > x_h

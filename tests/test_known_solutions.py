@@ -29,8 +29,7 @@ def test_the_claims_cover_every_scenario_the_issue_names():
     assert {("2m_vs_1z", "alternating_aggro", "smac"), ("2m_vs_1z", "alternating_aggro", "weakest"),
             ("2m_vs_1z", "kite_aggro", "weakest"), ("3s_vs_3z", "stalker_kite", "smac"),
             ("3s_vs_3z", "stalker_stand", "smac"), ("3s_vs_4z", "stalker_kite", "smac"),
-            ("3s_vs_4z", "stalker_stand", "smac"), ("corridor", "hold_choke", "smac"),
-            ("3s5z_vs_3s6z", "hide_pick_off", "smac")} <= pairs
+            ("3s_vs_4z", "stalker_stand", "smac"), ("corridor", "hold_choke", "smac")} <= pairs
 
 
 def test_the_same_zealot_decides_2m_vs_1z():

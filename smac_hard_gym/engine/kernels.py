@@ -79,7 +79,16 @@ from smac_hard_gym.engine.state import (
     STANCE_WALKED,
 )
 from smac_hard_gym.engine.terrain import MOVER_AIR
-from smac_hard_gym.engine.units import BIO, MIN_DAMAGE, SHIELD_REGEN_DELAY_LOOPS, WEAPON_BURST, WEAPON_HEAL, S
+from smac_hard_gym.engine.units import (
+    BIO,
+    CALL_FOR_HELP_PERIOD_LOOPS,
+    CALL_FOR_HELP_RADIUS,
+    MIN_DAMAGE,
+    SHIELD_REGEN_DELAY_LOOPS,
+    WEAPON_BURST,
+    WEAPON_HEAL,
+    S,
+)
 from smac_hard_gym.engine.units import WEAPON_LINE_SPLASH as _LINE
 
 # numba's OpenMP layer spins and yields badly when the cores are shared (a 16-battle step took 8 ms instead of
@@ -152,6 +161,7 @@ class Rows(NamedTuple):
     order_y: np.ndarray
     target: np.ndarray
     attacker: np.ndarray
+    help_wait: np.ndarray
     fired_at: np.ndarray
     burst: np.ndarray
     stance: np.ndarray
@@ -165,6 +175,7 @@ class Rows(NamedTuple):
     engaged: np.ndarray
     x0: np.ndarray
     y0: np.ndarray
+    life0: np.ndarray
 
 
 @inline
@@ -172,9 +183,10 @@ def battle_rows(st, scratch, b):
     """Battle b's :class:`Rows` of the state ``st`` and the scratch arrays ``scratch``."""
     return Rows(st.side[b], st.alive[b], st.alive_at_loop[b], st.x[b], st.y[b], st.health[b], st.shield[b],
                 st.energy[b], st.cooldown[b], st.shield_wait[b], st.order[b], st.order_target[b], st.order_x[b],
-                st.order_y[b], st.target[b], st.attacker[b], st.fired_at[b], st.burst[b], st.stance[b],
-                st.pending_target[b], st.pending_eta[b], st.pending_hits[b], st.loop[b:b + 1], st.rng[b:b + 1],
-                scratch.by_x[b], scratch.key[b], scratch.engaged[b], scratch.x0[b], scratch.y0[b])
+                st.order_y[b], st.target[b], st.attacker[b], st.help_wait[b], st.fired_at[b], st.burst[b],
+                st.stance[b], st.pending_target[b], st.pending_eta[b], st.pending_hits[b], st.loop[b:b + 1],
+                st.rng[b:b + 1], scratch.by_x[b], scratch.key[b], scratch.engaged[b], scratch.x0[b], scratch.y0[b],
+                scratch.life0[b])
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -255,6 +267,7 @@ def _timers(n, r, slot_stats):
     """Start of a loop: the snapshots the loop's phases read (who is alive, who engages whom), then the timers."""
     alive, alive0, target, engaged = r.alive, r.alive_at_loop, r.target, r.engaged
     health, shield, energy, cooldown, shield_wait = r.health, r.shield, r.energy, r.cooldown, r.shield_wait
+    help_wait = r.help_wait
     for i in range(n):
         alive0[i] = alive[i]
         engaged[i] = target[i]
@@ -262,6 +275,8 @@ def _timers(n, r, slot_stats):
             continue
         if cooldown[i] > 0.0:
             cooldown[i] -= 1.0
+        if help_wait[i] > 0.0:
+            help_wait[i] -= 1.0
         regen = slot_stats[i, _REGEN]
         if regen > 0.0 and health[i] < slot_stats[i, _HEALTH]:
             health[i] = min(slot_stats[i, _HEALTH], health[i] + regen)
@@ -999,6 +1014,45 @@ def _fire(i, j, x, y, health, shield, shield_wait, attacker, pending_target, pen
         _damage(j, amount, i, health, shield, shield_wait, attacker, slot_stats)
 
 
+@helper
+def _answers_call(m, j, source, side, alive0, health, order, target, slot_stats):
+    """Unit m answers unit j's call for help against ``source``: an ally of j whose weapon is acquiring (idle and
+    not passive, or attack-moving: the answer is an acquisition, CWeapon's AcquireCallForHelpFilters), that can hit
+    the source and has no live target. Holding units acquire only in weapon range and answer nothing; a move or an
+    ordered attack acquires nothing."""
+    if m == j or side[m] != side[j] or not alive0[m] or health[m] <= 0.0:
+        return False
+    acquiring = order[m] == ORDER_ATTACK_MOVE or (order[m] == ORDER_IDLE and slot_stats[m, _PASSIVE] == 0)
+    if not acquiring or slot_stats[m, _DAMAGE] <= 0 or slot_stats[m, _WEAPON] == WEAPON_HEAL:
+        return False
+    t = target[m]
+    return (t < 0 or not alive0[t]) and _can_hit(slot_stats, m, source)
+
+
+@inline
+def _calls_for_help(n, r, slot_stats):
+    """SC2's call for help (docs/engine_rules.md, C13): a unit hit by an enemy this loop, if it has not called in the
+    last ``CALL_FOR_HELP_PERIOD_LOOPS``, calls the allies whose edge is within ``CALL_FOR_HELP_RADIUS`` of it. Each
+    that answers (``_answers_call``) acquires the caller's attacker: an attack-moving unit takes it as its target
+    (chased while within its scan range plus the leash, like any acquired target); an idle one takes it as if it had
+    been hit by it, so its response (``_scan``'s last resort) turns it on that attacker wherever it is."""
+    side, alive0, x, y, health, shield = r.side, r.alive_at_loop, r.x, r.y, r.health, r.shield
+    order, target, attacker, help_wait, life0, burst = r.order, r.target, r.attacker, r.help_wait, r.life0, r.burst
+    for j in range(n):
+        source = attacker[j]
+        if (not alive0[j] or burst[j] or help_wait[j] > 0.0 or health[j] + shield[j] >= life0[j] or source < 0
+                or side[source] == side[j]):
+            continue
+        help_wait[j] = CALL_FOR_HELP_PERIOD_LOOPS
+        for m in range(n):
+            if _answers_call(m, j, source, side, alive0, health, order, target, slot_stats) and _within(
+                    x[j], y[j], x[m], y[m], CALL_FOR_HELP_RADIUS + slot_stats[m, _RADIUS]):
+                if order[m] == ORDER_ATTACK_MOVE:
+                    target[m] = source
+                else:
+                    attacker[m] = source
+
+
 @inline
 def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
     """Every unit alive when the loop began and in reach of its target acts: delayed hits land, weapons off
@@ -1008,6 +1062,9 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
     energy, cooldown, shield_wait, target, attacker = r.energy, r.cooldown, r.shield_wait, r.target, r.attacker
     fired_at, burst, rng = r.fired_at, r.burst, r.rng
     pending_target, pending_eta, pending_hits = r.pending_target, r.pending_eta, r.pending_hits
+    life0 = r.life0
+    for i in range(n):
+        life0[i] = health[i] + shield[i]
     _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
                   slot_stats)
     heals = False
@@ -1030,6 +1087,7 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
             if jitter_hi > jitter_lo:  # SC2 adds a random delay to every attack
                 cooldown[i] += jitter_lo + (jitter_hi - jitter_lo) * _uniform(rng)
             fired_at[i] = j
+    _calls_for_help(n, r, slot_stats)  # before heals, which could hide a small hit
     # Heals land after every shot of the loop, so a unit killed this loop stays dead and a heal never depends on
     # whether the medivac's slot comes before or after the shooters' (red's medivac healed before blue fired, blue's
     # after red fired: the same fight went differently for the two sides).

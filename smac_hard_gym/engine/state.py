@@ -51,6 +51,7 @@ class BattleState(NamedTuple):
     order_y: np.ndarray  # float64
     target: np.ndarray  # int32: unit the weapon (or heal) is engaging now, NO_UNIT if none
     attacker: np.ndarray  # int32: last unit that damaged this one (SC2's "response when attacked")
+    help_wait: np.ndarray  # float64: game loops until this unit can call for help again (SC2's CallForHelpPeriod)
     fired_at: np.ndarray  # int32: last unit fired at (or healed) during the latest env step, for rendering
     burst: np.ndarray  # bool: a baneling that exploded during the latest env step
     alive_at_loop: np.ndarray  # bool scratch: alive when the current game loop began (simultaneous fire)
@@ -97,6 +98,7 @@ class Scratch(NamedTuple):
     engaged: int32 slot: each unit's target when the current game loop began (targeting's "who attacks me").
     x0, y0: float64 world position of each unit when movement began (units move simultaneously); separation then
         sums its pushes in them (world units).
+    life0: float64 health plus shields of each unit when the loop's attacks began (who was hit calls for help).
     """
 
     by_x: np.ndarray
@@ -104,6 +106,7 @@ class Scratch(NamedTuple):
     engaged: np.ndarray
     x0: np.ndarray
     y0: np.ndarray
+    life0: np.ndarray
 
     @classmethod
     def empty(cls, batch: int, n_units: int) -> Scratch:
@@ -113,6 +116,7 @@ class Scratch(NamedTuple):
             engaged=np.zeros((batch, n_units), dtype=np.int32),
             x0=np.zeros((batch, n_units), dtype=np.float64),
             y0=np.zeros((batch, n_units), dtype=np.float64),
+            life0=np.zeros((batch, n_units), dtype=np.float64),
         )
 
 
@@ -120,9 +124,9 @@ _FIELD_DTYPES = {
     "utype": np.int32, "side": np.int8, "alive": np.bool_, "x": np.float64, "y": np.float64,
     "health": np.float64, "shield": np.float64, "energy": np.float64, "cooldown": np.float64,
     "shield_wait": np.float64, "order": np.int8, "order_target": np.int32, "order_x": np.float64,
-    "order_y": np.float64, "target": np.int32, "attacker": np.int32, "fired_at": np.int32, "burst": np.bool_,
-    "alive_at_loop": np.bool_, "stance": np.int8, "pending_target": np.int32, "pending_eta": np.int32,
-    "pending_hits": np.int8,
+    "order_y": np.float64, "target": np.int32, "attacker": np.int32, "help_wait": np.float64,
+    "fired_at": np.int32, "burst": np.bool_, "alive_at_loop": np.bool_, "stance": np.int8,
+    "pending_target": np.int32, "pending_eta": np.int32, "pending_hits": np.int8,
 }
 
 

@@ -44,6 +44,10 @@ ZERG_REGEN_PER_SECOND = 0.2734  # xml: 0.2734 HP per Normal second (0.38 Faster)
 # every 0.3332 Normal s, armour aside (Liquipedia, Creep: 4.2 HP per Faster second); SMAC's maps have no creep.
 OFF_CREEP_DECAY_PER_SECOND = 1.0 / 0.3332
 MIN_DAMAGE = 0.5  # SC2: a hit on health deals at least 0.5 after armour
+# gamedata (core GameData.xml, CGame): a unit hit by a weapon calls its allies within CallForHelpRadius 4 for help,
+# at most once every CallForHelpPeriod 2 Normal s (docs/engine_rules.md, C13).
+CALL_FOR_HELP_RADIUS = 4.0
+CALL_FOR_HELP_PERIOD_LOOPS = 2.0 * LOOPS_PER_SECOND
 
 
 @dataclass(frozen=True)
