@@ -56,7 +56,7 @@ def reset_battles(st, battles, layout):
             st.order_target[b, i] = NO_UNIT
             st.target[b, i] = NO_UNIT
             st.attacker[b, i] = NO_UNIT
-            st.help_wait[b, i] = 0.0
+            st.help_at[b, i] = 0
             st.fired_at[b, i] = NO_UNIT
             st.burst[b, i] = False
             st.stance[b, i] = 0

@@ -161,7 +161,7 @@ class Rows(NamedTuple):
     order_y: np.ndarray
     target: np.ndarray
     attacker: np.ndarray
-    help_wait: np.ndarray
+    help_at: np.ndarray
     fired_at: np.ndarray
     burst: np.ndarray
     stance: np.ndarray
@@ -183,7 +183,7 @@ def battle_rows(st, scratch, b):
     """Battle b's :class:`Rows` of the state ``st`` and the scratch arrays ``scratch``."""
     return Rows(st.side[b], st.alive[b], st.alive_at_loop[b], st.x[b], st.y[b], st.health[b], st.shield[b],
                 st.energy[b], st.cooldown[b], st.shield_wait[b], st.order[b], st.order_target[b], st.order_x[b],
-                st.order_y[b], st.target[b], st.attacker[b], st.help_wait[b], st.fired_at[b], st.burst[b],
+                st.order_y[b], st.target[b], st.attacker[b], st.help_at[b], st.fired_at[b], st.burst[b],
                 st.stance[b], st.pending_target[b], st.pending_eta[b], st.pending_hits[b], st.loop[b:b + 1],
                 st.rng[b:b + 1], scratch.by_x[b], scratch.key[b], scratch.engaged[b], scratch.x0[b], scratch.y0[b],
                 scratch.life0[b])
@@ -264,10 +264,11 @@ def _apply_commands(n, r, cmd, b, slot_stats):
 
 @inline
 def _timers(n, r, slot_stats):
-    """Start of a loop: the snapshots the loop's phases read (who is alive, who engages whom), then the timers."""
+    """Start of a loop: the snapshots the loop's phases read (who is alive, who engages whom), then the timers, then
+    each unit's life as the attacks will find it (``life0``: who was hit calls for help)."""
     alive, alive0, target, engaged = r.alive, r.alive_at_loop, r.target, r.engaged
     health, shield, energy, cooldown, shield_wait = r.health, r.shield, r.energy, r.cooldown, r.shield_wait
-    help_wait = r.help_wait
+    life0 = r.life0
     for i in range(n):
         alive0[i] = alive[i]
         engaged[i] = target[i]
@@ -275,8 +276,6 @@ def _timers(n, r, slot_stats):
             continue
         if cooldown[i] > 0.0:
             cooldown[i] -= 1.0
-        if help_wait[i] > 0.0:
-            help_wait[i] -= 1.0
         regen = slot_stats[i, _REGEN]
         if regen > 0.0 and health[i] < slot_stats[i, _HEALTH]:
             health[i] = min(slot_stats[i, _HEALTH], health[i] + regen)
@@ -290,6 +289,7 @@ def _timers(n, r, slot_stats):
                 shield[i] = min(slot_stats[i, _SHIELD], shield[i] + slot_stats[i, _SHIELD_REGEN])
         if slot_stats[i, _ENERGY_MAX] > 0.0 and energy[i] < slot_stats[i, _ENERGY_MAX]:
             energy[i] = min(slot_stats[i, _ENERGY_MAX], energy[i] + slot_stats[i, _ENERGY_REGEN])
+        life0[i] = health[i] + shield[i]  # nothing changes life between here and the attacks
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -967,7 +967,9 @@ def _target_in_reach(i, alive0, x, y, target, slot_stats):
 def _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
                   slot_stats):
     """Delayed hits due this loop land: missiles (they home and never miss, and land even if their shooter has
-    died) and the zealot's second blade (only while the zealot lives and its target is within the blade's reach)."""
+    died) and the zealot's second blade (only while the zealot lives and its target is within the blade's reach).
+    Returns whether any landed."""
+    landed = False
     for i in range(n):
         j = pending_target[i]
         if j < 0:
@@ -984,6 +986,8 @@ def _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pendin
         amount = _hit_amount(slot_stats, i, j)
         for _ in range(pending_hits[i]):
             _damage(j, amount, i, health, shield, shield_wait, attacker, slot_stats)
+        landed = True
+    return landed
 
 
 @helper
@@ -1030,23 +1034,25 @@ def _answers_call(m, j, source, side, alive0, health, order, target, slot_stats)
 
 
 @inline
-def _calls_for_help(n, r, slot_stats):
-    """SC2's call for help (docs/engine_rules.md, C13): a unit hit by an enemy this loop, if it has not called in the
-    last ``CALL_FOR_HELP_PERIOD_LOOPS``, calls the allies whose edge is within ``CALL_FOR_HELP_RADIUS`` of it. Each
-    that answers (``_answers_call``) acquires the caller's attacker: an attack-moving unit takes it as its target
-    (chased while within its scan range plus the leash, like any acquired target); an idle one takes it as if it had
-    been hit by it, so its response (``_scan``'s last resort) turns it on that attacker wherever it is."""
+def _calls_for_help(n, r, slot_stats, now):
+    """SC2's call for help (docs/engine_rules.md, C13): a unit hit by an enemy this loop calls, unless it called in
+    the last ``CALL_FOR_HELP_PERIOD_LOOPS`` (``help_at``: the battle loop ``now`` from which it may call again), the
+    allies whose edge is within ``CALL_FOR_HELP_RADIUS`` of it. Each that answers (``_answers_call``) acquires the
+    caller's attacker: an attack-moving unit takes it as its target (chased while within its scan range plus the
+    leash, like any acquired target); an idle one takes it as if it had been hit by it, so its response (``_scan``'s
+    last resort) turns it on that attacker wherever it is."""
     side, alive0, x, y, health, shield = r.side, r.alive_at_loop, r.x, r.y, r.health, r.shield
-    order, target, attacker, help_wait, life0, burst = r.order, r.target, r.attacker, r.help_wait, r.life0, r.burst
+    order, target, attacker, help_at, life0, burst = r.order, r.target, r.attacker, r.help_at, r.life0, r.burst
     for j in range(n):
         source = attacker[j]
-        if (not alive0[j] or burst[j] or help_wait[j] > 0.0 or health[j] + shield[j] >= life0[j] or source < 0
+        if (health[j] + shield[j] >= life0[j] or help_at[j] > now or not alive0[j] or burst[j] or source < 0
                 or side[source] == side[j]):
             continue
-        help_wait[j] = CALL_FOR_HELP_PERIOD_LOOPS
+        help_at[j] = now + CALL_FOR_HELP_PERIOD_LOOPS
         for m in range(n):
-            if _answers_call(m, j, source, side, alive0, health, order, target, slot_stats) and _within(
-                    x[j], y[j], x[m], y[m], CALL_FOR_HELP_RADIUS + slot_stats[m, _RADIUS]):
+            if side[m] != side[j] or not _within(x[j], y[j], x[m], y[m], CALL_FOR_HELP_RADIUS + slot_stats[m, _RADIUS]):
+                continue
+            if _answers_call(m, j, source, side, alive0, health, order, target, slot_stats):
                 if order[m] == ORDER_ATTACK_MOVE:
                     target[m] = source
                 else:
@@ -1054,7 +1060,7 @@ def _calls_for_help(n, r, slot_stats):
 
 
 @inline
-def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
+def _attacks(n, r, slot_stats, jitter_lo, jitter_hi, now):
     """Every unit alive when the loop began and in reach of its target acts: delayed hits land, weapons off
     cooldown fire (each shot's cooldown gets a uniform random delay in [``jitter_lo``, ``jitter_hi``) loops), banelings
     burst, then medivacs heal."""
@@ -1062,11 +1068,8 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
     energy, cooldown, shield_wait, target, attacker = r.energy, r.cooldown, r.shield_wait, r.target, r.attacker
     fired_at, burst, rng = r.fired_at, r.burst, r.rng
     pending_target, pending_eta, pending_hits = r.pending_target, r.pending_eta, r.pending_hits
-    life0 = r.life0
-    for i in range(n):
-        life0[i] = health[i] + shield[i]
-    _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta, pending_hits,
-                  slot_stats)
+    hit = _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta,
+                        pending_hits, slot_stats)
     heals = False
     for i in range(n):
         j = _target_in_reach(i, alive0, x, y, target, slot_stats)
@@ -1077,7 +1080,9 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
             heals = True
         elif weapon == WEAPON_BURST:
             _burst(n, i, side, alive0, x, y, health, shield, shield_wait, attacker, burst, slot_stats)
+            hit = True
         elif cooldown[i] <= 0.0:
+            hit = True
             if weapon == _LINE:
                 _line_splash(n, i, j, side, alive0, x, y, health, shield, shield_wait, attacker, slot_stats)
             else:
@@ -1087,7 +1092,8 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi):
             if jitter_hi > jitter_lo:  # SC2 adds a random delay to every attack
                 cooldown[i] += jitter_lo + (jitter_hi - jitter_lo) * _uniform(rng)
             fired_at[i] = j
-    _calls_for_help(n, r, slot_stats)  # before heals, which could hide a small hit
+    if hit:
+        _calls_for_help(n, r, slot_stats, now)  # before heals, which could hide a small hit
     # Heals land after every shot of the loop, so a unit killed this loop stays dead and a heal never depends on
     # whether the medivac's slot comes before or after the shooters' (red's medivac healed before blue fired, blue's
     # after red fired: the same fight went differently for the two sides).
@@ -1136,12 +1142,13 @@ def _step_battle(n, b, st, cmd, slot_stats, terrain, n_loops, jitter, scratch):
         max_radius = max(max_radius, slot_stats[i, _RADIUS])
     worst = 0.0
     _apply_commands(n, r, cmd, b, slot_stats)
-    for _ in range(n_loops):
+    loop0 = r.loop[0]
+    for k in range(n_loops):
         _timers(n, r, slot_stats)
         _targeting(n, r, slot_stats)
         _movement(n, r, slot_stats, terrain)
         worst = _separation(n, r, slot_stats, walk, max_radius)
-        _attacks(n, r, slot_stats, jitter_lo, jitter_hi)
+        _attacks(n, r, slot_stats, jitter_lo, jitter_hi, loop0 + k)
         _deaths(n, r)
     # Crowds chasing one target re-compress a little every loop; settle them before anyone observes the state. When
     # the last pass pushed nothing, nothing has moved since, and a settling pass would push nothing either.

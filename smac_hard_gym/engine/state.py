@@ -51,7 +51,7 @@ class BattleState(NamedTuple):
     order_y: np.ndarray  # float64
     target: np.ndarray  # int32: unit the weapon (or heal) is engaging now, NO_UNIT if none
     attacker: np.ndarray  # int32: last unit that damaged this one (SC2's "response when attacked")
-    help_wait: np.ndarray  # float64: game loops until this unit can call for help again (SC2's CallForHelpPeriod)
+    help_at: np.ndarray  # int64: battle loop from which this unit can call for help again (SC2's CallForHelpPeriod)
     fired_at: np.ndarray  # int32: last unit fired at (or healed) during the latest env step, for rendering
     burst: np.ndarray  # bool: a baneling that exploded during the latest env step
     alive_at_loop: np.ndarray  # bool scratch: alive when the current game loop began (simultaneous fire)
@@ -124,7 +124,7 @@ _FIELD_DTYPES = {
     "utype": np.int32, "side": np.int8, "alive": np.bool_, "x": np.float64, "y": np.float64,
     "health": np.float64, "shield": np.float64, "energy": np.float64, "cooldown": np.float64,
     "shield_wait": np.float64, "order": np.int8, "order_target": np.int32, "order_x": np.float64,
-    "order_y": np.float64, "target": np.int32, "attacker": np.int32, "help_wait": np.float64,
+    "order_y": np.float64, "target": np.int32, "attacker": np.int32, "help_at": np.int64,
     "fired_at": np.int32, "burst": np.bool_, "alive_at_loop": np.bool_, "stance": np.int8,
     "pending_target": np.int32, "pending_eta": np.int32, "pending_hits": np.int8,
 }

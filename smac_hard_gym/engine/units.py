@@ -47,7 +47,7 @@ MIN_DAMAGE = 0.5  # SC2: a hit on health deals at least 0.5 after armour
 # gamedata (core GameData.xml, CGame): a unit hit by a weapon calls its allies within CallForHelpRadius 4 for help,
 # at most once every CallForHelpPeriod 2 Normal s (docs/engine_rules.md, C13).
 CALL_FOR_HELP_RADIUS = 4.0
-CALL_FOR_HELP_PERIOD_LOOPS = 2.0 * LOOPS_PER_SECOND
+CALL_FOR_HELP_PERIOD_LOOPS = int(2 * LOOPS_PER_SECOND)
 
 
 @dataclass(frozen=True)
