@@ -119,7 +119,8 @@ _LEASH = 3.0  # an acquired target is dropped once it is this far beyond the sca
 # SC2 holds numbers in 20.12 fixed point (SC2Mapster, "Types/Fixed": the Galaxy type and the game files' fixed32);
 # every move (``_slide``) lands on that grid (docs/engine_rules.md, C12).
 POSITION_GRID = 4096.0
-_EDGE = 1.0 / POSITION_GRID  # keeps positions strictly inside the map (a grid point)
+_GRID_STEP = 1.0 / POSITION_GRID  # exact: the grid is a power of two, so dividing by it is multiplying by this
+_EDGE = _GRID_STEP  # keeps positions strictly inside the map (a grid point)
 _INF = 1e300
 _SETTLE_PASSES = 16  # at most this many extra separation passes after the last loop of an env step
 _SETTLED = 0.05  # ... stopping once no overlap is deeper than this
@@ -516,8 +517,8 @@ def _slide(px, py, nx, ny, mover, walk):
     battle mirrored through the map's centre line keeps landing on the mirror image (the grid and even rounding are
     symmetric about any integer width)."""
     mx, my = walk.shape[1], walk.shape[2]
-    nx = np.rint(min(max(nx, _EDGE), mx - _EDGE) * POSITION_GRID) / POSITION_GRID
-    ny = np.rint(min(max(ny, _EDGE), my - _EDGE) * POSITION_GRID) / POSITION_GRID
+    nx = np.rint(min(max(nx, _EDGE), mx - _EDGE) * POSITION_GRID) * _GRID_STEP
+    ny = np.rint(min(max(ny, _EDGE), my - _EDGE) * POSITION_GRID) * _GRID_STEP
     if mover == MOVER_AIR or walk[mover, int(nx), int(ny)]:
         return nx, ny
     if walk[mover, int(nx), int(py)]:
