@@ -1020,12 +1020,12 @@ def _fire(i, j, x, y, health, shield, shield_wait, attacker, pending_target, pen
 
 
 @helper
-def _answers_call(m, j, source, side, alive0, health, order, target, slot_stats):
-    """Unit m answers unit j's call for help against ``source``: an ally of j whose weapon is acquiring (idle and
-    not passive, or attack-moving: the answer is an acquisition, CWeapon's AcquireCallForHelpFilters), that can hit
-    the source and has no live target. Holding units acquire only in weapon range and answer nothing; a move or an
-    ordered attack acquires nothing."""
-    if m == j or side[m] != side[j] or not alive0[m] or health[m] <= 0.0:
+def _answers_call(m, j, source, alive0, health, order, target, slot_stats):
+    """Unit m, an ally of unit j (``_calls_for_help`` picks them), answers j's call for help against ``source``: m is
+    not j, its weapon is acquiring (idle and not passive, or attack-moving: the answer is an acquisition, CWeapon's
+    AcquireCallForHelpFilters), it can hit the source and has no live target. Holding units acquire only in weapon
+    range and answer nothing; a move or an ordered attack acquires nothing."""
+    if m == j or not alive0[m] or health[m] <= 0.0:
         return False
     acquiring = order[m] == ORDER_ATTACK_MOVE or (order[m] == ORDER_IDLE and slot_stats[m, _PASSIVE] == 0)
     if not acquiring or slot_stats[m, _DAMAGE] <= 0 or slot_stats[m, _WEAPON] == WEAPON_HEAL:
@@ -1053,7 +1053,7 @@ def _calls_for_help(n, r, slot_stats, now):
         for m in range(n):
             if side[m] != side[j] or not _within(x[j], y[j], x[m], y[m], CALL_FOR_HELP_RADIUS + slot_stats[m, _RADIUS]):
                 continue
-            if _answers_call(m, j, source, side, alive0, health, order, target, slot_stats):
+            if _answers_call(m, j, source, alive0, health, order, target, slot_stats):
                 if order[m] == ORDER_ATTACK_MOVE:
                     target[m] = source
                 else:

@@ -98,7 +98,8 @@ class Scratch(NamedTuple):
     engaged: int32 slot: each unit's target when the current game loop began (targeting's "who attacks me").
     x0, y0: float64 world position of each unit when movement began (units move simultaneously); separation then
         sums its pushes in them (world units).
-    life0: float64 health plus shields of each unit when the loop's attacks began (who was hit calls for help).
+    life0: float64 health plus shields of each unit after the loop's timers, as its attacks find them (who was hit
+        calls for help).
     """
 
     by_x: np.ndarray
