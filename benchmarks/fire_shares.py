@@ -12,6 +12,13 @@ A unit alive through a step is counted once in one class, in this order:
 - ``stalled``: out of reach, and it moved less than a quarter of its step's walk;
 - ``walking``: out of reach, and it moved.
 
+It also counts **long hold-ups**: runs of ``LONG_STALL`` or more consecutive env steps (2 Normal game seconds) that
+a unit spends *held up*, per game, and the longest run seen. Held up: out of reach, and it got less than a quarter of
+its step's walk closer to where its target stood at the step's start (stalled, or walking without closing in: pushed
+back and forth behind its own line). SC2's units blocked behind their own firing line go round it
+or take the first opening (docs/engine_rules.md, sources FLOW, ARC, PATH), so a long stall is the engine's, not the
+game's.
+
 Example (docs/engine_rules.md, 4.5)::
 
     python benchmarks/fire_shares.py --model runs/5m_vs_6m-smac-s0/model.zip --episodes 32
@@ -27,9 +34,13 @@ from pathlib import Path
 import numpy as np
 
 CLASSES = ("fired", "in_reach", "no_target", "walking", "stalled")
+LONG_STALL = 4  # env steps of 8 game loops: 2 Normal game seconds
 
 
 def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str, float]]:
+    """Per side (``learner``, ``opponent``): the share of unit-steps in each of ``CLASSES``, ``held_up`` (the share
+    of unit-steps held up), ``long_holdups`` (runs of at least ``LONG_STALL`` held-up steps, per game) and
+    ``longest_holdup`` (steps)."""
     import torch
 
     from smac_hard_gym.engine.units import STATS, S
@@ -46,6 +57,9 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
     venv = NativeVectorEnv(config.map_name, 1, autoreset_mode="SameStep", opponent=opponent, **kwargs)
     st = venv.core.backend.state
     counts = {"learner": dict.fromkeys(CLASSES, 0), "opponent": dict.fromkeys(CLASSES, 0)}
+    long_runs = {"learner": 0, "opponent": 0}
+    longest = {"learner": 0, "opponent": 0}
+    held = {"learner": 0, "opponent": 0}
     try:
         for episode in range(episodes):
             obs, _ = venv.reset(seed=TEST_SEED_BASE + episode)
@@ -53,11 +67,21 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
             reach = STATS[utype, S["range"]] + STATS[utype, S["radius"]]
             stall = 0.25 * venv.core.backend.step_mul * STATS[utype, S["speed"]]
             red = np.arange(utype.size) < venv.core.n_red
+            run = np.zeros(utype.size, dtype=np.int64)  # consecutive held-up steps so far, per unit
+
+            def close_runs(units: np.ndarray) -> None:
+                for i in units:
+                    side = "learner" if red[i] else "opponent"
+                    long_runs[side] += int(run[i] >= LONG_STALL)
+                    longest[side] = max(longest[side], int(run[i]))
+                    run[i] = 0
+
             while True:
                 x, y, alive, target = st.x[0].copy(), st.y[0].copy(), st.alive[0].copy(), st.target[0].copy()
                 actions, _ = model.predict(obs, action_masks=venv.action_masks(), deterministic=True)
                 obs, _, terminated, truncated, _ = venv.step(actions)
                 if terminated[0] or truncated[0]:
+                    close_runs(np.flatnonzero(run))
                     break
                 for i in np.flatnonzero(alive & st.alive[0]):
                     k = target[i]
@@ -71,10 +95,23 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
                         kind = "stalled"
                     else:
                         kind = "walking"
-                    counts["learner" if red[i] else "opponent"][kind] += 1
+                    side = "learner" if red[i] else "opponent"
+                    counts[side][kind] += 1
+                    closer = 0.0
+                    if kind in ("stalled", "walking"):
+                        closer = np.hypot(x[i] - x[k], y[i] - y[k]) - np.hypot(st.x[0, i] - x[k], st.y[0, i] - y[k])
+                    if kind == "stalled" or (kind == "walking" and closer < stall[i]):
+                        held[side] += 1
+                        run[i] += 1
+                    elif run[i]:
+                        close_runs([i])
+                close_runs(np.flatnonzero((run > 0) & ~st.alive[0]))
     finally:
         venv.close()
-    return {side: {k: v / max(1, sum(c.values())) for k, v in c.items()} for side, c in counts.items()}
+    return {side: {**{k: v / max(1, sum(c.values())) for k, v in c.items()},
+                   "held_up": held[side] / max(1, sum(c.values())),
+                   "long_holdups": long_runs[side] / episodes, "longest_holdup": longest[side]}
+            for side, c in counts.items()}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -87,9 +124,11 @@ def main(argv: list[str] | None = None) -> int:
     if a.episodes < 1:
         p.error(f"--episodes must be >= 1, got {a.episodes}")
     result = shares(a.model, a.episodes, a.opponent)
-    print("side      " + "".join(f"{k:>10}" for k in CLASSES))
+    extra = ("held_up", "long_holdups", "longest_holdup")
+    print("side      " + "".join(f"{k:>10}" for k in CLASSES) + "".join(f"{k:>15}" for k in extra))
     for side, row in result.items():
-        print(f"{side:<10}" + "".join(f"{row[k]:>10.3f}" for k in CLASSES))
+        print(f"{side:<10}" + "".join(f"{row[k]:>10.3f}" for k in CLASSES)
+              + f"{row['held_up']:>15.3f}{row['long_holdups']:>15.2f}{row['longest_holdup']:>15d}")
     if a.json:
         a.json.write_text(json.dumps({"model": str(a.model), "episodes": a.episodes, "opponent": a.opponent,
                                       "shares": result}, indent=1) + "\n")
