@@ -60,6 +60,15 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
     long_runs = {"learner": 0, "opponent": 0}
     longest = {"learner": 0, "opponent": 0}
     held = {"learner": 0, "opponent": 0}
+
+    def close_runs(units: np.ndarray, run: np.ndarray, red: np.ndarray) -> None:
+        """End the held-up runs of ``units``: count the long ones, keep the longest."""
+        for i in units:
+            side = "learner" if red[i] else "opponent"
+            long_runs[side] += int(run[i] >= LONG_STALL)
+            longest[side] = max(longest[side], int(run[i]))
+            run[i] = 0
+
     try:
         for episode in range(episodes):
             obs, _ = venv.reset(seed=TEST_SEED_BASE + episode)
@@ -69,19 +78,12 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
             red = np.arange(utype.size) < venv.core.n_red
             run = np.zeros(utype.size, dtype=np.int64)  # consecutive held-up steps so far, per unit
 
-            def close_runs(units: np.ndarray) -> None:
-                for i in units:
-                    side = "learner" if red[i] else "opponent"
-                    long_runs[side] += int(run[i] >= LONG_STALL)
-                    longest[side] = max(longest[side], int(run[i]))
-                    run[i] = 0
-
             while True:
                 x, y, alive, target = st.x[0].copy(), st.y[0].copy(), st.alive[0].copy(), st.target[0].copy()
                 actions, _ = model.predict(obs, action_masks=venv.action_masks(), deterministic=True)
                 obs, _, terminated, truncated, _ = venv.step(actions)
                 if terminated[0] or truncated[0]:
-                    close_runs(np.flatnonzero(run))
+                    close_runs(np.flatnonzero(run), run, red)
                     break
                 for i in np.flatnonzero(alive & st.alive[0]):
                     k = target[i]
@@ -104,8 +106,8 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
                         held[side] += 1
                         run[i] += 1
                     elif run[i]:
-                        close_runs([i])
-                close_runs(np.flatnonzero((run > 0) & ~st.alive[0]))
+                        close_runs([i], run, red)
+                close_runs(np.flatnonzero((run > 0) & ~st.alive[0]), run, red)
     finally:
         venv.close()
     return {side: {**{k: v / max(1, sum(c.values())) for k, v in c.items()},
