@@ -12,12 +12,12 @@ A unit alive through a step is counted once in one class, in this order:
 - ``stalled``: out of reach, and it moved less than a quarter of its step's walk;
 - ``walking``: out of reach, and it moved.
 
-It also counts **long hold-ups**: runs of ``LONG_STALL`` or more consecutive env steps (2 Normal game seconds) that
-a unit spends *held up*, per game, and the longest run seen. Held up: out of reach, and it got less than a quarter of
-its step's walk closer to where its target stood at the step's start (stalled, or walking without closing in: pushed
-back and forth behind its own line). SC2's units blocked behind their own firing line go round it
-or take the first opening (docs/engine_rules.md, sources FLOW, ARC, PATH), so a long stall is the engine's, not the
-game's.
+It also counts **long hold-ups**: runs of ``LONG_HOLDUP`` or more consecutive env steps (2 Normal game seconds)
+that a unit spends *held up*, per game, and the longest run seen. Held up: out of reach, and it got less than a
+quarter of its step's walk closer to where its target stood at the step's start (stalled, or walking without closing
+in: pushed back and forth behind its own line). SC2's units blocked behind their own firing line go round it or take
+the first opening (docs/engine_rules.md, 7.5, sources FLOW, ARC, PATH); walking round a long line also makes little
+progress, so the count holds some of that too.
 
 Example (docs/engine_rules.md, 4.5)::
 
@@ -34,12 +34,12 @@ from pathlib import Path
 import numpy as np
 
 CLASSES = ("fired", "in_reach", "no_target", "walking", "stalled")
-LONG_STALL = 4  # env steps of 8 game loops: 2 Normal game seconds
+LONG_HOLDUP = 4  # env steps of 8 game loops: 2 Normal game seconds
 
 
 def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str, float]]:
     """Per side (``learner``, ``opponent``): the share of unit-steps in each of ``CLASSES``, ``held_up`` (the share
-    of unit-steps held up), ``long_holdups`` (runs of at least ``LONG_STALL`` held-up steps, per game) and
+    of unit-steps held up), ``long_holdups`` (runs of at least ``LONG_HOLDUP`` held-up steps, per game) and
     ``longest_holdup`` (steps)."""
     import torch
 
@@ -65,7 +65,7 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
         """End the held-up runs of ``units``: count the long ones, keep the longest."""
         for i in units:
             side = "learner" if red[i] else "opponent"
-            long_runs[side] += int(run[i] >= LONG_STALL)
+            long_runs[side] += int(run[i] >= LONG_HOLDUP)
             longest[side] = max(longest[side], int(run[i]))
             run[i] = 0
 
@@ -99,10 +99,9 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
                         kind = "walking"
                     side = "learner" if red[i] else "opponent"
                     counts[side][kind] += 1
-                    closer = 0.0
-                    if kind in ("stalled", "walking"):
-                        closer = np.hypot(x[i] - x[k], y[i] - y[k]) - np.hypot(st.x[0, i] - x[k], st.y[0, i] - y[k])
-                    if kind == "stalled" or (kind == "walking" and closer < stall[i]):
+                    held_up = kind == "stalled" or (kind == "walking" and np.hypot(x[i] - x[k], y[i] - y[k])
+                                                     - np.hypot(st.x[0, i] - x[k], st.y[0, i] - y[k]) < stall[i])
+                    if held_up:
                         held[side] += 1
                         run[i] += 1
                     elif run[i]:
@@ -110,10 +109,12 @@ def shares(model_path: Path, episodes: int, opponent: str) -> dict[str, dict[str
                 close_runs(np.flatnonzero((run > 0) & ~st.alive[0]), run, red)
     finally:
         venv.close()
-    return {side: {**{k: v / max(1, sum(c.values())) for k, v in c.items()},
-                   "held_up": held[side] / max(1, sum(c.values())),
-                   "long_holdups": long_runs[side] / episodes, "longest_holdup": longest[side]}
-            for side, c in counts.items()}
+    result = {}
+    for side, c in counts.items():
+        steps = max(1, sum(c.values()))
+        result[side] = {**{k: v / steps for k, v in c.items()}, "held_up": held[side] / steps,
+                        "long_holdups": long_runs[side] / episodes, "longest_holdup": longest[side]}
+    return result
 
 
 def main(argv: list[str] | None = None) -> int:
