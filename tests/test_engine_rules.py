@@ -145,6 +145,37 @@ def test_a_walker_in_a_pocket_between_two_units_slides_out_along_one_and_goes_ro
     assert np.hypot(st.x[0, 2] - 13.0, st.y[0, 2] - 16.0) <= 0.05
 
 
+def test_two_walkers_going_round_a_wall_the_opposite_ways_pass_instead_of_standing():
+    # A wall of three marines holds at x = 10 (y 15.25, 16.0, 16.75: touching, no gap). B (9.2, 15.6) walks to
+    # (13, 18), round the wall's north end, C (9.2, 16.4) to (13, 14), round its south end: their paths cross behind
+    # the wall. Each is put back by the wall and steers away from the wall unit in its way, B north (left), C south
+    # (right), into each other; own walkers shove each other apart, so without C14 each one's only free turn led
+    # into the other and both stood at (9.26, 15.62) and (9.26, 16.38) for ever. SC2's units retry any opening (PATH)
+    # and go round (FLOW). With C14 the one farther from its goal takes the other's side; here the two are equally
+    # far (3.8^2 + 2.4^2 each), so C (the higher slot) follows B round the north end, and both get there.
+    wall = {0: (10.0, 15.25), 1: (10.0, 16.0), 2: (10.0, 16.75)}
+    engine = engine_with(["Marine_RL"] * 5, ["Medivac"], wall | {3: (9.2, 15.6), 4: (9.2, 16.4), 5: (20.0, 4.0)})
+    for k in wall:
+        _order(engine, k, CMD_HOLD)
+    _order(engine, 3, CMD_MOVE, point=(13.0, 18.0))
+    _order(engine, 4, CMD_MOVE, point=(13.0, 14.0))
+    st = engine.state
+    crossed = {}
+    closest = float("inf")
+    for _ in range(120):
+        _run(engine, 1)
+        for k in (3, 4):
+            if k not in crossed and st.x[0, k] >= 10.0:
+                crossed[k] = float(st.y[0, k])
+        gaps = np.hypot(st.x[0, :3, None] - st.x[0, None, 3:5], st.y[0, :3, None] - st.y[0, None, 3:5])
+        closest = min(closest, float(gaps.min()))
+    assert [(st.x[0, k], st.y[0, k]) for k in wall] == list(wall.values())
+    assert closest >= 0.75 - 1 / POSITION_GRID
+    assert set(crossed) == {3, 4} and min(crossed.values()) >= 16.75 + 0.75 - 1 / POSITION_GRID  # both went north
+    assert np.hypot(st.x[0, 3] - 13.0, st.y[0, 3] - 18.0) <= 0.05
+    assert np.hypot(st.x[0, 4] - 13.0, st.y[0, 4] - 14.0) <= 0.05
+
+
 # --- Missiles (section 2): the stalker's, hydralisk's and marauder's shots fly; they home, never miss, and land
 # even if the shooter has died.
 

@@ -77,6 +77,7 @@ from smac_hard_gym.engine.state import (
     STANCE_RIGHT,
     STANCE_SIDE,
     STANCE_WALKED,
+    STANCE_YIELDS,
 )
 from smac_hard_gym.engine.terrain import MOVER_AIR
 from smac_hard_gym.engine.units import (
@@ -624,6 +625,46 @@ def _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_st
     return 0.0, 0.0, 0.0
 
 
+@helper
+def _goal_distance2(i, x0, y0, target, order_x, order_y):
+    """Squared distance from walker i to where it walks: its target, else its order point."""
+    j = target[i]
+    gx, gy = (x0[j], y0[j]) if j >= 0 else (order_x[i], order_y[i])
+    dx, dy = gx - x0[i], gy - y0[i]
+    return dx * dx + dy * dy
+
+
+@helper
+def _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stats):
+    """Walkers that give way (docs/engine_rules.md, C14): two own walkers going round on opposite sides (both blocked
+    last loop, ``STANCE_LEFT`` against ``STANCE_RIGHT``) that touch would walk into each other, be shoved apart and
+    stand there, each one's only free turn leading into the other; the one farther from its goal (its target, else
+    its order point; the higher slot on a tie) takes the other's side instead, and they go round one after the
+    other. Decided for every pair from the stances as movement began, then applied, so the slot order does not
+    matter. ``x0, y0``: positions as movement began."""
+    for i in range(n):
+        si = stance[i] & STANCE_SIDE
+        if (stance[i] & STANCE_KIND) != STANCE_WALKED or (stance[i] & STANCE_BLOCKED) == 0 or si == 0:
+            continue
+        for j in range(i + 1, n):
+            sj = stance[j] & STANCE_SIDE
+            if (side[j] != side[i] or (stance[j] & STANCE_KIND) != STANCE_WALKED or (stance[j] & STANCE_BLOCKED) == 0
+                    or sj == 0 or sj == si):
+                continue
+            rr = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS] + 0.1
+            if not _within(x0[i], y0[i], x0[j], y0[j], rr):
+                continue
+            if _goal_distance2(i, x0, y0, target, order_x, order_y) > _goal_distance2(j, x0, y0, target, order_x,
+                                                                                      order_y):
+                stance[i] |= STANCE_YIELDS
+            else:
+                stance[j] |= STANCE_YIELDS
+    for i in range(n):
+        if stance[i] & STANCE_YIELDS:
+            stance[i] = (stance[i] & ~(STANCE_YIELDS | STANCE_SIDE)) | (
+                STANCE_RIGHT if (stance[i] & STANCE_LEFT) else STANCE_LEFT)
+
+
 @inline
 def _movement(n, r, slot_stats, terrain):
     """Every unit steps toward its target (unless in range) or its order point; ``stance`` records who walked and
@@ -662,6 +703,7 @@ def _movement(n, r, slot_stats, terrain):
         else:
             continue
         stance[i] = STANCE_WALKED | blocked
+    _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stats)
     centre_x = 0.5 * walk.shape[1]
     for i in range(n):
         if (stance[i] & STANCE_KIND) != STANCE_WALKED:

@@ -30,6 +30,7 @@ NO_UNIT = -1
 STANCE_NONE, STANCE_WALKED, STANCE_FIRING = 0, 1, 2
 STANCE_KIND, STANCE_BLOCKED, STANCE_LEFT, STANCE_RIGHT = 3, 4, 8, 16
 STANCE_SIDE = STANCE_LEFT | STANCE_RIGHT
+STANCE_YIELDS = 32  # a walker going round that takes the side of an own walker coming round the other way (C14)
 
 
 class BattleState(NamedTuple):
