@@ -683,6 +683,7 @@ def _movement(n, r, slot_stats, terrain):
     for i in range(n):
         x0[i] = x[i]
         y0[i] = y[i]
+    going_round = 0  # walkers blocked last loop with a kept side: only two or more can meet head on (C14)
     for i in range(n):
         blocked = stance[i] & (STANCE_BLOCKED | STANCE_SIDE)
         stance[i] = STANCE_NONE
@@ -703,7 +704,10 @@ def _movement(n, r, slot_stats, terrain):
         else:
             continue
         stance[i] = STANCE_WALKED | blocked
-    _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stats)
+        if (blocked & STANCE_BLOCKED) and (blocked & STANCE_SIDE):
+            going_round += 1
+    if going_round >= 2:
+        _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stats)
     centre_x = 0.5 * walk.shape[1]
     for i in range(n):
         if (stance[i] & STANCE_KIND) != STANCE_WALKED:
