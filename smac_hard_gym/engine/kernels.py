@@ -123,6 +123,7 @@ POSITION_GRID = 4096.0
 _GRID_STEP = 1.0 / POSITION_GRID  # exact: the grid is a power of two, so dividing by it is multiplying by this
 _EDGE = _GRID_STEP  # keeps positions strictly inside the map (a grid point)
 _INF = 1e300
+_TOUCHING = 0.1  # two walkers whose edges are this close meet (C14's pair pass)
 _SETTLE_PASSES = 16  # at most this many extra separation passes after the last loop of an env step
 _SETTLED = 0.05  # ... stopping once no overlap is deeper than this
 
@@ -637,11 +638,11 @@ def _goal_distance2(i, x0, y0, target, order_x, order_y):
 @helper
 def _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stats):
     """Walkers that give way (docs/engine_rules.md, C14): two own walkers going round on opposite sides (both blocked
-    last loop, ``STANCE_LEFT`` against ``STANCE_RIGHT``) that touch would walk into each other, be shoved apart and
-    stand there, each one's only free turn leading into the other; the one farther from its goal (its target, else
-    its order point; the higher slot on a tie) takes the other's side instead, and they go round one after the
-    other. Decided for every pair from the stances as movement began, then applied, so the slot order does not
-    matter. ``x0, y0``: positions as movement began."""
+    last loop, ``STANCE_LEFT`` against ``STANCE_RIGHT``) whose edges are within ``_TOUCHING`` would walk into each
+    other, be shoved apart and stand there, each one's only free turn leading into the other; the one farther from
+    its goal (its target, else its order point; the higher slot on a tie) takes the other's side instead, and they
+    go round one after the other. Decided for every pair from the stances as movement began, then applied, so the
+    slot order does not matter. ``x0, y0``: positions as movement began."""
     for i in range(n):
         si = stance[i] & STANCE_SIDE
         if (stance[i] & STANCE_KIND) != STANCE_WALKED or (stance[i] & STANCE_BLOCKED) == 0 or si == 0:
@@ -651,8 +652,7 @@ def _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stat
             if (side[j] != side[i] or (stance[j] & STANCE_KIND) != STANCE_WALKED or (stance[j] & STANCE_BLOCKED) == 0
                     or sj == 0 or sj == si):
                 continue
-            rr = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS] + 0.1
-            if not _within(x0[i], y0[i], x0[j], y0[j], rr):
+            if not _within(x0[i], y0[i], x0[j], y0[j], slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS] + _TOUCHING):
                 continue
             if _goal_distance2(i, x0, y0, target, order_x, order_y) > _goal_distance2(j, x0, y0, target, order_x,
                                                                                       order_y):

@@ -26,11 +26,12 @@ NO_UNIT = -1
 # (docs/engine_rules.md, section 1). The kind is ``stance & STANCE_KIND``; ``STANCE_BLOCKED`` is a flag on top of it:
 # the unit walked into a unit that does not give way, so its next step steers round (section 1, C11). While it goes
 # round, ``STANCE_LEFT`` or ``STANCE_RIGHT`` keeps the side it took, so it does not swing back into the pocket it
-# left.
+# left; of two own walkers that meet going round the opposite ways, one takes the other's side (``STANCE_YIELDS``
+# marks it only while movement decides that; section 8, C14).
 STANCE_NONE, STANCE_WALKED, STANCE_FIRING = 0, 1, 2
 STANCE_KIND, STANCE_BLOCKED, STANCE_LEFT, STANCE_RIGHT = 3, 4, 8, 16
 STANCE_SIDE = STANCE_LEFT | STANCE_RIGHT
-STANCE_YIELDS = 32  # a walker going round that takes the side of an own walker coming round the other way (C14)
+STANCE_YIELDS = 32
 
 
 class BattleState(NamedTuple):
