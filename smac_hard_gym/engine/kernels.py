@@ -627,12 +627,29 @@ def _steer(n, i, ux, uy, step, side, alive, x, y, order, target, stance, slot_st
 
 
 @helper
-def _goal_distance2(i, x0, y0, target, order_x, order_y):
-    """Squared distance from walker i to where it walks: its target, else its order point."""
+def _goal(i, x0, y0, target, order_x, order_y):
+    """Where walker i walks: its target (where it stood as movement began), else its order point."""
     j = target[i]
-    gx, gy = (x0[j], y0[j]) if j >= 0 else (order_x[i], order_y[i])
+    if j >= 0:
+        return x0[j], y0[j]
+    return order_x[i], order_y[i]
+
+
+@helper
+def _goal_distance2(i, x0, y0, target, order_x, order_y):
+    """Squared distance from walker i to its ``_goal``."""
+    gx, gy = _goal(i, x0, y0, target, order_x, order_y)
     dx, dy = gx - x0[i], gy - y0[i]
     return dx * dx + dy * dy
+
+
+@helper
+def _round_side(s):
+    """The side (``STANCE_LEFT`` or ``STANCE_RIGHT``) a walker with stance ``s`` is going round on: it was blocked
+    last loop and keeps a side; 0 otherwise."""
+    if (s & STANCE_KIND) != STANCE_WALKED or (s & STANCE_BLOCKED) == 0:
+        return 0
+    return s & STANCE_SIDE
 
 
 @helper
@@ -644,13 +661,12 @@ def _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stat
     go round one after the other. Decided for every pair from the stances as movement began, then applied, so the
     slot order does not matter. ``x0, y0``: positions as movement began."""
     for i in range(n):
-        si = stance[i] & STANCE_SIDE
-        if (stance[i] & STANCE_KIND) != STANCE_WALKED or (stance[i] & STANCE_BLOCKED) == 0 or si == 0:
+        si = _round_side(stance[i])
+        if si == 0:
             continue
         for j in range(i + 1, n):
-            sj = stance[j] & STANCE_SIDE
-            if (side[j] != side[i] or (stance[j] & STANCE_KIND) != STANCE_WALKED or (stance[j] & STANCE_BLOCKED) == 0
-                    or sj == 0 or sj == si):
+            sj = _round_side(stance[j])
+            if side[j] != side[i] or sj == 0 or sj == si:
                 continue
             if not _within(x0[i], y0[i], x0[j], y0[j], slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS] + _TOUCHING):
                 continue
@@ -704,7 +720,7 @@ def _movement(n, r, slot_stats, terrain):
         else:
             continue
         stance[i] = STANCE_WALKED | blocked
-        if (blocked & STANCE_BLOCKED) and (blocked & STANCE_SIDE):
+        if _round_side(stance[i]):
             going_round += 1
     if going_round >= 2:
         _yield_crossing(n, x0, y0, side, stance, target, order_x, order_y, slot_stats)
@@ -712,11 +728,7 @@ def _movement(n, r, slot_stats, terrain):
     for i in range(n):
         if (stance[i] & STANCE_KIND) != STANCE_WALKED:
             continue
-        j = target[i]
-        if j >= 0:
-            gx, gy = x0[j], y0[j]
-        else:
-            gx, gy = order_x[i], order_y[i]
+        gx, gy = _goal(i, x0, y0, target, order_x, order_y)
         mover = int(slot_stats[i, _MOVER])
         if mover == MOVER_AIR or open_field[mover]:  # checked here: even an early-returning call costs
             wx, wy = gx, gy
