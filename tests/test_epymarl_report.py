@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import shutil
 from pathlib import Path
+
+import pytest
 
 REPORT = Path(__file__).resolve().parents[1] / "benchmarks" / "epymarl" / "report.py"
 
@@ -41,3 +44,47 @@ def test_report_table_and_spearman(tmp_path):
     assert "| MMM2 | 0.300* (0.15M) [seed0] |" in report
     # ours 0.8 > 0.5 > 0.1 and the paper's QMIX 0.9798 > 0.9797 > 0.0 rank the three maps alike: rho = 1
     assert "Spearman, QMIX (finished runs) with the paper's QMIX: 1.00 over 3 maps (3m, 8m, corridor)." in report
+
+
+def _provenance(job: Path, fingerprint: str, commit: str) -> None:
+    (job / "engine.json").write_text(json.dumps({"fingerprint": fingerprint}))
+    (job / "logs").mkdir()
+    (job / "logs" / "1.log").write_text(f"# python src/main.py ...\n# smac-hard-gym {commit}; EPyMARL cbc38c0\n")
+
+
+def test_record_keeps_a_lost_folder_and_a_live_run_supersedes_it(tmp_path):
+    runs, kept = tmp_path / "runs", tmp_path / "kept.json"
+    _run(runs, "3m", "seed0", [0.1, 0.5, 0.9, 1.0])
+    _provenance(runs / "qmix" / "3m" / "seed0", "aaaa", "abc123")
+    _run(runs, "8m", "seed0", [0.2, 0.2, 0.2], done=False)
+    _provenance(runs / "qmix" / "8m" / "seed0", "aaaa", "abc123")
+    report = _report()
+    assert report.main(["--out", str(runs), "--record", str(kept), "--no-plots"]) == 0
+    text = kept.read_text()
+    assert str(tmp_path) not in text  # no machine paths on record
+    by_map = {r["map"]: r for r in json.loads(text)["runs"]}
+    assert by_map["3m"]["engine"] == "aaaa" and by_map["3m"]["smac_hard_gym"] == "abc123"
+    assert by_map["3m"]["done"] and not by_map["8m"]["done"]
+
+    # the machine is lost: the record alone gives the same table
+    shutil.rmtree(runs)
+    table = tmp_path / "table"
+    table.mkdir()
+    assert report.main(["--out", str(table), "--records", str(kept), "--no-plots"]) == 0
+    text = (table / "report.md").read_text()
+    assert "| 3m | 0.800 [seed0] | 0.980 |" in text
+    assert "| 8m | 0.200* (0.15M) [seed0] |" in text
+
+    # the 8m run restarted on the same engine and went further: the live run replaces the recorded one
+    _run(table, "8m", "seed0", [0.2, 0.2, 0.2, 0.6, 0.7, 0.8])
+    _provenance(table / "qmix" / "8m" / "seed0", "aaaa", "abc123")
+    assert report.main(["--out", str(table), "--records", str(kept), "--no-plots"]) == 0
+    text = (table / "report.md").read_text()
+    assert "| 8m | 0.700 [seed0] | 0.980 |" in text  # (0.6 + 0.7 + 0.8) / 3, one row, not two
+
+
+def test_records_that_are_not_a_record_file_are_refused(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text("[1, 2]")
+    with pytest.raises(SystemExit, match="not a report.py --record file"):
+        _report().main(["--records", str(bad), "--no-plots"])

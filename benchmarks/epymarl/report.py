@@ -11,6 +11,12 @@ episodes in all. A job without done.json is shown as in progress with the same m
 ``--out`` takes several folders (runs kept apart, e.g. made on different pinned installs); the report and curves
 go to the first. Below the table: Spearman's rank correlation of each algorithm's finished runs (mean over seeds)
 with the paper's column, over the maps where it has one.
+
+A machine can be lost with its run folders, so ``--record FILE`` writes what the table is made of (each run's
+evaluation curve, whether it finished, the engine fingerprint and commits it ran) as a JSON file meant to be kept
+in the repository (``benchmarks/results/``), with no machine paths; ``--records FILE ...`` reads such files back
+as runs of their own, so a table can join runs kept on record with runs still going (a live folder's run
+supersedes a recorded one of the same algorithm, map, seed and engine).
 """
 
 from __future__ import annotations
@@ -72,6 +78,41 @@ def recent_speed(job_dir: Path, window: int = 100_000) -> float | None:
     return (steps[-1] - steps[i]) / secs if secs > 0 else None
 
 
+def provenance(job_dir: Path) -> dict[str, str]:
+    """The engine fingerprint (engine.json) and the smac-hard-gym and EPyMARL commits (each start's log header,
+    written by run_reference.py) a job ran on; the commits of every start, in order, joined by ' then '."""
+    found: dict[str, list[str]] = {"smac_hard_gym": [], "epymarl": []}
+    for log in sorted((job_dir / "logs").glob("*.log"), key=lambda f: int(f.stem) if f.stem.isdigit() else 0):
+        with open(log, errors="replace") as f:
+            head = [f.readline() for _ in range(2)][1]
+        m = re.match(r"# smac-hard-gym (.+); EPyMARL (.+)", head.strip())
+        if m:
+            for name, rev in zip(("smac_hard_gym", "epymarl"), m.groups(), strict=True):
+                if rev not in found[name]:
+                    found[name].append(rev)
+    try:
+        engine = json.loads((job_dir / "engine.json").read_text())["fingerprint"]
+    except (OSError, ValueError, KeyError):
+        engine = "unrecorded"
+    return {"engine": engine, **{k: " then ".join(v) or "unknown" for k, v in found.items()}}
+
+
+def record(algo: str, map_name: str, seed: str, job_dir: Path) -> dict:
+    """One run as kept on record: its curve and provenance, no paths."""
+    return {"algo": algo, "map": map_name, "seed": seed, **provenance(job_dir),
+            "done": (job_dir / "done.json").is_file(), KEY: [[t, v] for t, v in curve(job_dir)]}
+
+
+def read_records(paths: list[Path]) -> list[dict]:
+    runs = []
+    for path in paths:
+        data = json.loads(path.read_text())
+        if not isinstance(data, dict) or not isinstance(data.get("runs"), list):
+            raise SystemExit(f"{path}: not a report.py --record file (expected an object with a 'runs' list)")
+        runs += data["runs"]
+    return runs
+
+
 def jobs(out: Path) -> list[tuple[str, str, str, Path]]:
     """(algo, map, seed-folder, dir) of every job folder under out (not the ``seed<n>.engine-<fingerprint>``
     folders that ``run_reference.py --restart-changed`` moved aside: runs on an earlier engine)."""
@@ -124,25 +165,33 @@ def plot(path: Path, map_name: str, series: dict[str, list[tuple[int, float]]], 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path, nargs="+", required=True,
-                   help="run_reference.py --out folder(s); the report is written to the first")
+    p.add_argument("--out", type=Path, nargs="*", default=[],
+                   help="run_reference.py --out folder(s); the report and curves are written to the first")
+    p.add_argument("--records", type=Path, nargs="*", default=[], help="--record files to join as runs")
+    p.add_argument("--record", type=Path, help="write the runs of the --out folders to this JSON file")
     p.add_argument("--last", type=int, default=3, help="final win rate = mean of the last N test evaluations")
     p.add_argument("--t-max", type=int, default=2_050_000)
     p.add_argument("--no-plots", action="store_true")
     args = p.parse_args(argv)
+    if not args.out and not args.records:
+        p.error("give --out folder(s), --records file(s) or both")
     folders = [o.expanduser().resolve() for o in args.out]
-    out = folders[0]
     all_jobs = [job for folder in folders for job in jobs(folder)]
+    live = [record(algo, map_name, seed, d) for algo, map_name, seed, d in all_jobs]
+    if args.record:
+        atomic_write_text(args.record, json.dumps({"runs": live}, indent=1) + "\n")
+    ident = {(r["algo"], r["map"], r["seed"], r["engine"]) for r in live}
+    runs = live + [r for r in read_records(args.records) if (r["algo"], r["map"], r["seed"], r["engine"]) not in ident]
 
     rows: dict[str, dict[str, list[tuple[str, float | None, int, bool]]]] = {}
     per_map: dict[str, dict[str, list[tuple[int, float]]]] = {}
-    for algo, map_name, seed, d in all_jobs:
-        pts = curve(d)
+    for run in runs:
+        pts = [(int(t), float(v)) for t, v in run[KEY]]
         last = [v for _, v in pts[-args.last:]]
         final = sum(last) / len(last) if last else None
         t_reached = pts[-1][0] if pts else 0
-        rows.setdefault(map_name, {}).setdefault(algo, []).append((seed, final, t_reached, (d / "done.json").is_file()))
-        per_map.setdefault(map_name, {})[f"{algo} {seed}"] = pts
+        rows.setdefault(run["map"], {}).setdefault(run["algo"], []).append((run["seed"], final, t_reached, run["done"]))
+        per_map.setdefault(run["map"], {})[f"{run['algo']} {run['seed']}"] = pts
 
     lines = [
         "# EPyMARL reference runs vs SMAC's opponent (smac-hard-gym engine)",
@@ -181,7 +230,8 @@ def main(argv: list[str] | None = None) -> int:
         lines.append(f"Spearman, {algo.upper()} (finished runs) with the paper's {algo.upper()}: "
                      f"{'–' if math.isnan(rho) else f'{rho:.2f}'} over {len(maps)} maps ({', '.join(maps) or 'none'}).")
     lines.append("")
-    if not args.no_plots and per_map:
+    if folders and not args.no_plots and per_map:
+        out = folders[0]
         (out / "curves").mkdir(exist_ok=True)
         for map_name, series in per_map.items():
             plot(out / "curves" / f"{map_name}.png", map_name, series, args.t_max)
@@ -197,7 +247,8 @@ def main(argv: list[str] | None = None) -> int:
         left = "done" if done else ("–" if not v else f"{max(0, args.t_max - t) / v / 3600:.1f}")
         lines.append(f"| {algo}/{map_name}/{seed} | {t} | {'–' if v is None else f'{v:.0f}'} | {left} |")
     lines.append("")
-    atomic_write_text(out / "report.md", "\n".join(lines))
+    if folders:
+        atomic_write_text(folders[0] / "report.md", "\n".join(lines))
     print("\n".join(lines))
     return 0
 
