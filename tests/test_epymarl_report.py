@@ -88,3 +88,18 @@ def test_records_that_are_not_a_record_file_are_refused(tmp_path):
     bad.write_text("[1, 2]")
     with pytest.raises(SystemExit, match="not a report.py --record file"):
         _report().main(["--records", str(bad), "--no-plots"])
+
+
+def test_a_run_still_going_is_set_beside_qmix_in_sc2_at_the_same_steps(tmp_path):
+    # 5m_vs_6m evaluated at 0.40M, 0.45M and 0.50M steps: the SMAC paper's QMIX in SC2 reads 0.21 at 0.4M and 0.32
+    # at 0.5M (0.265 half way), so the same steps average (0.21 + 0.265 + 0.32) / 3 = 0.265
+    run = tmp_path / "qmix" / "5m_vs_6m" / "seed0" / "sacred" / "1" / "1"
+    run.mkdir(parents=True)
+    (run / "info.json").write_text(json.dumps({"test_battle_won_mean": [0.5, 0.9, 0.8],
+                                               "test_battle_won_mean_T": [400_000, 450_000, 500_000]}))
+    assert _report().main(["--out", str(tmp_path), "--no-plots"]) == 0
+    assert "| 5m_vs_6m | 0.733* (0.50M) [seed0] | 0.544 | 0.265 [seed0] |" in (tmp_path / "report.md").read_text()
+    report = _report()
+    assert report.sc2_qmix_at("5m_vs_6m", 0) == 0.0
+    assert report.sc2_qmix_at("5m_vs_6m", 3_000_000) == 0.65  # its last point, at 2M
+    assert report.sc2_qmix_at("3m", 500_000) is None  # no curve for 3m

@@ -28,6 +28,7 @@ import os
 import re
 import tempfile
 from pathlib import Path
+from typing import NamedTuple
 
 from smac_hard_gym.training.baselines.claims import spearman
 from smac_hard_gym.training.baselines.paper import PAPER
@@ -37,6 +38,39 @@ from smac_hard_gym.training.baselines.paper import PAPER
 PAPER_2M_DEFAULT_OPPONENT = PAPER["smac_2m"]
 PAPER_COL = {"qmix": 0, "mappo": 1}
 KEY = "test_battle_won_mean"
+
+# QMIX in StarCraft II along the way, not only at 2M: the SMAC paper's (Samvelyan et al. 2019, arXiv 1902.04043)
+# pymarl QMIX (GRU agent, RMSprop, one env, 2M steps, SC2 4.6.2), mean test win rate of its 5 runs from SMAC's
+# released run data (smac_run_data.json) as plotted in FlickerNiko/SAC-QMIX figures/<map>_all.svg, read at
+# t_env = 0.1M, 0.2M, ..., 2.0M (linear between the plot's points, every 0.02M). Their ends agree with the SMAC
+# paper's table of medians (5m_vs_6m 70%, MMM2 69%, 27m_vs_30m 49%, 3s5z_vs_3s6z 2%, 6h_vs_8z 3%).
+SC2_QMIX_CURVE_STEP = 100_000
+SC2_QMIX_CURVES: dict[str, tuple[float, ...]] = {
+    "5m_vs_6m": (0.0, 0.01, 0.06, 0.21, 0.32, 0.47, 0.49, 0.56, 0.54, 0.57,
+                 0.53, 0.64, 0.65, 0.6, 0.67, 0.69, 0.68, 0.69, 0.69, 0.65),
+    "27m_vs_30m": (0.0, 0.0, 0.0, 0.0, 0.03, 0.03, 0.05, 0.08, 0.06, 0.11,
+                   0.18, 0.11, 0.12, 0.23, 0.23, 0.32, 0.28, 0.36, 0.37, 0.4),
+    "3s5z_vs_3s6z": (0.0, 0.0, 0.0, 0.0, 0.01, 0.01, 0.01, 0.01, 0.0, 0.01,
+                     0.01, 0.0, 0.0, 0.01, 0.01, 0.0, 0.01, 0.01, 0.03, 0.02),
+    "6h_vs_8z": (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.02,
+                 0.03, 0.02, 0.04, 0.01, 0.0, 0.01, 0.03, 0.03, 0.03, 0.02),
+    "MMM2": (0.0, 0.0, 0.0, 0.0, 0.01, 0.01, 0.03, 0.05, 0.09, 0.14,
+             0.22, 0.2, 0.26, 0.48, 0.47, 0.46, 0.58, 0.6, 0.64, 0.64),
+}
+
+
+def sc2_qmix_at(map_name: str, t_env: float) -> float | None:
+    """The SMAC paper's QMIX test win rate in SC2 at t_env (linear between its points, 0 at t_env 0; its last
+    value past 2M); None for a map without a curve."""
+    points = SC2_QMIX_CURVES.get(map_name)
+    if points is None:
+        return None
+    grid = (0.0, *points)  # grid[k]: the win rate at k * SC2_QMIX_CURVE_STEP steps
+    x = max(0.0, t_env / SC2_QMIX_CURVE_STEP)
+    k = int(x)
+    if k >= len(grid) - 1:
+        return grid[-1]
+    return grid[k] + (grid[k + 1] - grid[k]) * (x - k)
 
 
 def curve(job_dir: Path, key: str = KEY) -> list[tuple[int, float]]:
@@ -123,6 +157,17 @@ def jobs(out: Path) -> list[tuple[str, str, str, Path]]:
     return found
 
 
+class Row(NamedTuple):
+    """One run in the table: its final win rate (mean of the last evaluations), how far it got, whether it
+    finished, and the SMAC paper's QMIX in SC2 averaged over the same evaluation steps (None: no curve)."""
+
+    seed: str
+    final: float | None
+    t_reached: int
+    done: bool
+    sc2_same_steps: float | None
+
+
 def fmt(x: float | None) -> str:
     return "–" if x is None else f"{x:.3f}"
 
@@ -145,6 +190,10 @@ def plot(path: Path, map_name: str, series: dict[str, list[tuple[int, float]]], 
     for label, pts in sorted(series.items()):
         if pts:
             ax.plot([t / 1e6 for t, _ in pts], [v for _, v in pts], label=label, lw=1.2)
+    sc2 = SC2_QMIX_CURVES.get(map_name)
+    if sc2:
+        ax.plot([k * SC2_QMIX_CURVE_STEP / 1e6 for k in range(len(sc2) + 1)], [0.0, *sc2], ls="--", color="k", lw=1,
+                label="SC2 QMIX (SMAC paper)")
     paper = PAPER_2M_DEFAULT_OPPONENT.get(map_name)
     if paper:
         for algo, col, marker in (("qmix", 0, "o"), ("mappo", 1, "s")):
@@ -183,14 +232,16 @@ def main(argv: list[str] | None = None) -> int:
     ident = {(r["algo"], r["map"], r["seed"], r["engine"]) for r in live}
     runs = live + [r for r in read_records(args.records) if (r["algo"], r["map"], r["seed"], r["engine"]) not in ident]
 
-    rows: dict[str, dict[str, list[tuple[str, float | None, int, bool]]]] = {}
+    rows: dict[str, dict[str, list[Row]]] = {}
     per_map: dict[str, dict[str, list[tuple[int, float]]]] = {}
     for run in runs:
         pts = [(int(t), float(v)) for t, v in run[KEY]]
-        last = [v for _, v in pts[-args.last:]]
-        final = sum(last) / len(last) if last else None
-        t_reached = pts[-1][0] if pts else 0
-        rows.setdefault(run["map"], {}).setdefault(run["algo"], []).append((run["seed"], final, t_reached, run["done"]))
+        last = pts[-args.last:]
+        final = sum(v for _, v in last) / len(last) if last else None
+        sc2 = [sc2_qmix_at(run["map"], t) for t, _ in last]
+        sc2_mean = sum(sc2) / len(sc2) if sc2 and None not in sc2 else None
+        row = Row(run["seed"], final, pts[-1][0] if pts else 0, run["done"], sc2_mean)
+        rows.setdefault(run["map"], {}).setdefault(run["algo"], []).append(row)
         per_map.setdefault(run["map"], {})[f"{run['algo']} {run['seed']}"] = pts
 
     lines = [
@@ -200,29 +251,34 @@ def main(argv: list[str] | None = None) -> int:
         "episodes every 50k steps), t_max 2.05M; `*` = run still in progress (value so far, t_env reached shown).",
         "Paper: SMAC-HARD (arXiv 2412.17707), appendix table *Final performance at 2M time step with default "
         "opponent policy* (QMIX = pymarl2, MAPPO = Yu et al.; 5 seeds, 32 test episodes).",
+        "SC2 QMIX, same steps: the SMAC paper's pymarl QMIX in SC2 (mean of 5 runs) averaged over the t_env of "
+        "the same evaluations as ours, so a run still going can be compared too (where that paper has a curve).",
         "",
-        "| map | QMIX (ours) | QMIX (paper) | MAPPO (ours) | MAPPO (paper) |",
-        "|---|---|---|---|---|",
+        "| map | QMIX (ours) | QMIX (paper) | SC2 QMIX, same steps | MAPPO (ours) | MAPPO (paper) |",
+        "|---|---|---|---|---|---|",
     ]
 
-    def cell(entries: list[tuple[str, float | None, int, bool]] | None) -> str:
+    def cell(entries: list[Row] | None) -> str:
         if not entries:
             return "not run"
-        parts = []
-        for seed, final, t, done in entries:
-            parts.append(f"{fmt(final)}" + ("" if done else f"* ({t / 1e6:.2f}M)") + f" [{seed}]")
-        return "<br>".join(parts)
+        return "<br>".join(f"{fmt(r.final)}" + ("" if r.done else f"* ({r.t_reached / 1e6:.2f}M)") + f" [{r.seed}]"
+                           for r in entries)
+
+    def sc2_cell(entries: list[Row] | None) -> str:
+        known = [r for r in entries or [] if r.sc2_same_steps is not None]
+        return "<br>".join(f"{fmt(r.sc2_same_steps)} [{r.seed}]" for r in known) or "–"
 
     order = list(PAPER_2M_DEFAULT_OPPONENT)
     for map_name in sorted(rows, key=lambda m: (order.index(m) if m in order else len(order), m)):
         paper = PAPER_2M_DEFAULT_OPPONENT.get(map_name, (None, None))
-        lines.append(f"| {map_name} | {cell(rows[map_name].get('qmix'))} | {fmt(paper[0])} | "
+        qmix = rows[map_name].get("qmix")
+        lines.append(f"| {map_name} | {cell(qmix)} | {fmt(paper[0])} | {sc2_cell(qmix)} | "
                      f"{cell(rows[map_name].get('mappo'))} | {fmt(paper[1])} |")
     if not rows:
-        lines.append("| (no runs found) | | | | |")
+        lines.append("| (no runs found) | | | | | |")
     lines.append("")
     for algo, column in PAPER_COL.items():
-        finished = {m: [f for _, f, _, done in entries[algo] if done and f is not None]
+        finished = {m: [r.final for r in entries[algo] if r.done and r.final is not None]
                     for m, entries in rows.items() if algo in entries and m in PAPER_2M_DEFAULT_OPPONENT}
         finished = {m: sum(v) / len(v) for m, v in finished.items() if v}
         maps = sorted(finished)
