@@ -46,10 +46,13 @@ def test_report_table_and_spearman(tmp_path):
     assert "Spearman, QMIX (finished runs) with the paper's QMIX: 1.00 over 3 maps (3m, 8m, corridor)." in report
 
 
-def _provenance(job: Path, fingerprint: str, commit: str) -> None:
+def _provenance(job: Path, fingerprint: str, commit: str, extra: str = "") -> None:
     (job / "engine.json").write_text(json.dumps({"fingerprint": fingerprint}))
     (job / "logs").mkdir()
-    (job / "logs" / "1.log").write_text(f"# python src/main.py ...\n# smac-hard-gym {commit}; EPyMARL cbc38c0\n")
+    command = (f"# python src/main.py --config=qmix --env-config=sc2 -F {job}/sacred/1 with env_args.map_name=8m "
+               f'seed=0 t_max=2050000 save_model=True local_results_path="{job}" runner=parallel batch_size_run=2'
+               f"{extra}")
+    (job / "logs" / "1.log").write_text(f"{command}\n# smac-hard-gym {commit}; EPyMARL cbc38c0\n")
 
 
 def test_record_keeps_a_lost_folder_and_a_live_run_supersedes_it(tmp_path):
@@ -103,3 +106,22 @@ def test_a_run_still_going_is_set_beside_qmix_in_sc2_at_the_same_steps(tmp_path)
     assert report.sc2_qmix_at("5m_vs_6m", 0) == 0.0
     assert report.sc2_qmix_at("5m_vs_6m", 3_000_000) == 0.65  # its last point, at 2M
     assert report.sc2_qmix_at("3m", 500_000) is None  # no curve for 3m
+
+
+def test_runs_with_other_epymarl_settings_are_kept_apart_and_labelled(tmp_path):
+    runs, kept = tmp_path / "runs", tmp_path / "kept.json"
+    _run(runs, "8m", "seed0", [0.2, 0.4, 0.6])
+    _provenance(runs / "qmix" / "8m" / "seed0", "aaaa", "abc123")
+    other = tmp_path / "gru"
+    _run(other, "8m", "seed0", [0.0, 0.1, 0.2])
+    _provenance(other / "qmix" / "8m" / "seed0", "aaaa", "abc123", " use_rnn=True")
+    report = _report()
+    assert report.main(["--out", str(runs), str(other), "--record", str(kept), "--no-plots"]) == 0
+    settings = [r["settings"] for r in json.loads(kept.read_text())["runs"]]
+    two_envs = ["runner=parallel", "batch_size_run=2"]
+    assert settings == [two_envs, [*two_envs, "use_rnn=True"]]  # no paths, no routine settings
+    # both read back from the record: two entries, the second labelled with the setting it adds
+    table = tmp_path / "table"
+    table.mkdir()
+    assert report.main(["--out", str(table), "--records", str(kept), "--no-plots"]) == 0
+    assert "| 8m | 0.400 [seed0]<br>0.100 [seed0 use_rnn=True] | 0.980 |" in (table / "report.md").read_text()

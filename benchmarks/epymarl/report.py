@@ -112,13 +112,22 @@ def recent_speed(job_dir: Path, window: int = 100_000) -> float | None:
     return (steps[-1] - steps[i]) / secs if secs > 0 else None
 
 
-def provenance(job_dir: Path) -> dict[str, str]:
-    """The engine fingerprint (engine.json) and the smac-hard-gym and EPyMARL commits (each start's log header,
-    written by run_reference.py) a job ran on; the commits of every start, in order, joined by ' then '."""
+# sacred settings every run_reference.py job passes, or that name machine paths: not part of what tells runs apart
+_ROUTINE_SETTINGS = ("env_args.map_name", "seed", "t_max", "save_model", "save_model_interval", "local_results_path",
+                     "checkpoint_path", "load_step", "buffer_size")
+
+
+def provenance(job_dir: Path) -> dict:
+    """What a job ran: the engine fingerprint (engine.json), the smac-hard-gym and EPyMARL commits (each start's
+    log header, written by run_reference.py; those of every start, in order, joined by ' then ') and the EPyMARL
+    settings of its first start beyond the routine ones (e.g. ``runner=parallel``, ``use_rnn=True``)."""
     found: dict[str, list[str]] = {"smac_hard_gym": [], "epymarl": []}
+    settings: list[str] | None = None
     for log in sorted((job_dir / "logs").glob("*.log"), key=lambda f: int(f.stem) if f.stem.isdigit() else 0):
         with open(log, errors="replace") as f:
-            head = [f.readline() for _ in range(2)][1]
+            command, head = f.readline(), f.readline()
+        if settings is None and " with " in command:
+            settings = [w for w in command.split(" with ", 1)[1].split() if w.split("=")[0] not in _ROUTINE_SETTINGS]
         m = re.match(r"# smac-hard-gym (.+); EPyMARL (.+)", head.strip())
         if m:
             for name, rev in zip(("smac_hard_gym", "epymarl"), m.groups(), strict=True):
@@ -128,7 +137,8 @@ def provenance(job_dir: Path) -> dict[str, str]:
         engine = json.loads((job_dir / "engine.json").read_text())["fingerprint"]
     except (OSError, ValueError, KeyError):
         engine = "unrecorded"
-    return {"engine": engine, **{k: " then ".join(v) or "unknown" for k, v in found.items()}}
+    return {"engine": engine, **{k: " then ".join(v) or "unknown" for k, v in found.items()},
+            "settings": settings or []}
 
 
 def record(algo: str, map_name: str, seed: str, job_dir: Path) -> dict:
@@ -155,6 +165,10 @@ def jobs(out: Path) -> list[tuple[str, str, str, Path]]:
         if re.fullmatch(r"seed\d+", d.name) and ((d / "sacred").is_dir() or (d / "logs").is_dir()):
             found.append((d.parent.parent.name, d.parent.name, d.name, d))
     return found
+
+
+# run_reference.py's own choice for QMIX (two envs, docs/reference_epymarl.md): not repeated on every row's label
+_RUN_REFERENCE_DEFAULTS = ("runner=parallel", "batch_size_run=2")
 
 
 class Row(NamedTuple):
@@ -229,8 +243,11 @@ def main(argv: list[str] | None = None) -> int:
     live = [record(algo, map_name, seed, d) for algo, map_name, seed, d in all_jobs]
     if args.record:
         atomic_write_text(args.record, json.dumps({"runs": live}, indent=1) + "\n")
-    ident = {(r["algo"], r["map"], r["seed"], r["engine"]) for r in live}
-    runs = live + [r for r in read_records(args.records) if (r["algo"], r["map"], r["seed"], r["engine"]) not in ident]
+    def identity(run: dict) -> tuple:
+        return run["algo"], run["map"], run["seed"], run["engine"], tuple(run.get("settings", ()))
+
+    ident = {identity(r) for r in live}
+    runs = live + [r for r in read_records(args.records) if identity(r) not in ident]
 
     rows: dict[str, dict[str, list[Row]]] = {}
     per_map: dict[str, dict[str, list[tuple[int, float]]]] = {}
@@ -240,7 +257,8 @@ def main(argv: list[str] | None = None) -> int:
         final = sum(v for _, v in last) / len(last) if last else None
         sc2 = [sc2_qmix_at(run["map"], t) for t, _ in last]
         sc2_mean = sum(sc2) / len(sc2) if sc2 and None not in sc2 else None
-        row = Row(run["seed"], final, pts[-1][0] if pts else 0, run["done"], sc2_mean)
+        label = " ".join([run["seed"], *(w for w in run.get("settings", ()) if w not in _RUN_REFERENCE_DEFAULTS)])
+        row = Row(label, final, pts[-1][0] if pts else 0, run["done"], sc2_mean)
         rows.setdefault(run["map"], {}).setdefault(run["algo"], []).append(row)
         per_map.setdefault(run["map"], {})[f"{run['algo']} {run['seed']}"] = pts
 
