@@ -321,8 +321,9 @@ class _RandomLegal:
 
 def test_shared_policy_learns_3m_against_a_standing_enemy():
     """Honest and short: against "stop" (blue holds its ground) red must walk over and fight. A uniformly random
-    legal policy wins none of the 32 test battles (0/32); 20k steps of training win 29 of them (seeds 0 and 1;
-    10k steps won 10 and 25 on seeds 0 and 1: too close to the bound to be a robust test)."""
+    legal policy wins none of the 32 test battles (0/32); 40k steps of training win 32, 25 and 32 of them (seeds 0,
+    1, 2, AMD EPYC). 20k steps won 29 on a Xeon but 12, 25 and 12 on the EPYC, whose float rounding sends the same
+    seeded run elsewhere: too close to the bound to be a robust test (10k steps: 10 and 25 on seeds 0 and 1)."""
     eval_env = NativeVectorEnv("3m", 16, autoreset_mode="SameStep", opponent="stop", obs_mode="joint+state")
     random_rate = evaluate(_RandomLegal(0), eval_env, 32, seed=TEST_SEED_BASE).win_rate
     venv = _venv("3m", 16, opponent="stop")
@@ -337,4 +338,4 @@ def test_shared_policy_learns_3m_against_a_standing_enemy():
     assert random_rate <= RANDOM_MAX < TRAINED_MIN <= trained_rate, (random_rate, trained_rate)
 
 
-LEARN_STEPS, RANDOM_MAX, TRAINED_MIN = 20_480, 0.1, 0.5
+LEARN_STEPS, RANDOM_MAX, TRAINED_MIN = 40_960, 0.1, 0.5
