@@ -136,6 +136,9 @@ MAPPO_SCRIPTS = {  # map: (epochs, minibatches, frames our shared policy stands 
 }
 
 
+MEASURED_CLIP = {"3s_vs_5z": 0.15}
+
+
 @pytest.mark.parametrize("map_name", sorted(MAPPO_SCRIPTS))
 def test_the_shared_policy_defaults_to_mappos_settings_for_the_map(map_name):
     epochs, minibatches, frames = MAPPO_SCRIPTS[map_name]
@@ -143,8 +146,9 @@ def test_the_shared_policy_defaults_to_mappos_settings_for_the_map(map_name):
     assert (shared.obs_mode, shared.n_steps) == ("joint+state", 50)  # 64 x 50 = MAPPO's 8 x 400 samples
     assert (shared.n_epochs, shared.frame_stack) == (epochs, frames)
     # SB3 clips the joint ratio (the product over units), not MAPPO's per-agent one: the measured clip for those
-    # epochs (docs/training_results.md), 0.05 with 15, 0.2 with fewer
-    assert shared.clip_range == (0.05 if epochs == 15 else 0.2)
+    # epochs (docs/training_results.md), 0.05 with 15, 0.2 with fewer; on 3s_vs_5z MAPPO's per-unit 0.05 over its
+    # three units, 0.15 (measured there)
+    assert shared.clip_range == MEASURED_CLIP.get(map_name, 0.05 if epochs == 15 else 0.2)
     assert shared.batch_size == 3200 // minibatches
     assert TrainConfig(map_name=map_name, policy="shared", num_envs=8, n_steps=400).batch_size == 3200 // minibatches
     assert TrainConfig(map_name=map_name, policy="shared", num_envs=np.int64(8),

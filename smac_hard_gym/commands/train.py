@@ -26,7 +26,7 @@ def _policy_defaults() -> str:
     clips = ", ".join(f"{clip} with {epochs}" for epochs, clip in CLIP_FOR_EPOCHS.items())
     per_map = {"shared": f"; epochs and frame-stack as MAPPO's launch script for the map has them (one frame where "
                          f"measured to do as well), clip-range by "
-                         f"epochs: {clips} (smac_hard_gym/training/mappo_settings.py)"}
+                         f"epochs: {clips}, or as measured for the map (smac_hard_gym/training/mappo_settings.py)"}
     return "; ".join(f"{policy}: " + ", ".join(f"{flags.get(key, key).replace('_', '-')} {value(v)}"
                                                for key, v in table.items()) + per_map.get(policy, "")
                      for policy, table in POLICY_DEFAULTS.items())
