@@ -157,6 +157,11 @@ def read_records(paths: list[Path]) -> list[dict]:
     return runs
 
 
+def _identity(run: dict) -> tuple:
+    """What tells two recorded runs apart: a live run replaces a recorded one with the same identity."""
+    return run["algo"], run["map"], run["seed"], run["engine"], tuple(run.get("settings", ()))
+
+
 def jobs(out: Path) -> list[tuple[str, str, str, Path]]:
     """(algo, map, seed-folder, dir) of every job folder under out (not the ``seed<n>.engine-<fingerprint>``
     folders that ``run_reference.py --restart-changed`` moved aside: runs on an earlier engine)."""
@@ -243,11 +248,8 @@ def main(argv: list[str] | None = None) -> int:
     live = [record(algo, map_name, seed, d) for algo, map_name, seed, d in all_jobs]
     if args.record:
         atomic_write_text(args.record, json.dumps({"runs": live}, indent=1) + "\n")
-    def identity(run: dict) -> tuple:
-        return run["algo"], run["map"], run["seed"], run["engine"], tuple(run.get("settings", ()))
-
-    ident = {identity(r) for r in live}
-    runs = live + [r for r in read_records(args.records) if identity(r) not in ident]
+    ident = {_identity(r) for r in live}
+    runs = live + [r for r in read_records(args.records) if _identity(r) not in ident]
 
     rows: dict[str, dict[str, list[Row]]] = {}
     per_map: dict[str, dict[str, list[tuple[int, float]]]] = {}
@@ -260,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
         label = " ".join([run["seed"], *(w for w in run.get("settings", ()) if w not in _RUN_REFERENCE_DEFAULTS)])
         row = Row(label, final, pts[-1][0] if pts else 0, run["done"], sc2_mean)
         rows.setdefault(run["map"], {}).setdefault(run["algo"], []).append(row)
-        per_map.setdefault(run["map"], {})[f"{run['algo']} {run['seed']}"] = pts
+        per_map.setdefault(run["map"], {})[f"{run['algo']} {label}"] = pts  # runs with other settings: own curves
 
     lines = [
         "# EPyMARL reference runs vs SMAC's opponent (smac-hard-gym engine)",
