@@ -117,6 +117,51 @@ def test_a_failed_run_is_reported_and_redone_next_time(tmp_path, monkeypatch):
     assert run_state(Run("3m", "default", 0).path(tmp_path)) == "partial"
 
 
+def test_each_smac_model_is_evaluated_black_box_before_the_next_run_trains(tmp_path, monkeypatch):
+    """One slot: train s0, evaluate s0, train s1, ...; and results.json already holds s0 (with its black-box row)
+    when s1 starts, so a sweep cut short keeps what finished. A failed training gets no evaluation."""
+    events = tmp_path / "events.txt"
+
+    def fake_train(run, config):
+        path = run.path(config.out)
+        results = str(tmp_path / "out" / "results.json")
+        fail = "raise SystemExit(2)" if run.seed == 2 else "pass"
+        code = (f"import json, os, pathlib; p = pathlib.Path({str(path)!r}); p.mkdir(parents=True, exist_ok=True); "
+                f"r = {results!r}; seen = [(x['seed'], 'blackbox' in x) for x in json.load(open(r))['runs']] "
+                f"if os.path.exists(r) else []; "
+                f"open({str(events)!r}, 'a').write('train ' + {run.label!r} + ' ' + repr(seen) + '\\n'); {fail}; "
+                f"(p / 'curve.csv').write_text('timesteps,win_rate\\n0,0.0\\n256,0.5\\n'); "
+                f"(p / 'summary.json').write_text(json.dumps({{'map': {run.map_name!r}, "
+                f"'opponent': {run.opponent!r}, 'timesteps': 256, 'final_win_rate': 0.5, 'best_win_rate': 0.5, "
+                f"'interrupted': False}})); "
+                f"(p / 'config.json').write_text(json.dumps({{'seed': {run.seed}}}))")
+        return [sys.executable, "-c", code]
+
+    def fake_blackbox(run, config):
+        path = run.path(config.out)
+        code = (f"import json; open({str(events)!r}, 'a').write('eval ' + {run.label!r} + '\\n'); "
+                f"open({str(path / 'blackbox.json')!r}, 'w').write(json.dumps({{'scripts': {{'line_front': "
+                f"{{'win_rate': 0.25}}}}, 'weights': {{'line_front': 1.0}}, 'mixture': {{'win_rate': 0.25}}}}))")
+        return [sys.executable, "-c", code]
+
+    monkeypatch.setattr(sweep, "train_command", fake_train)
+    monkeypatch.setattr(sweep, "blackbox_command", fake_blackbox)
+    out = tmp_path / "out"
+    config = SweepConfig(maps=["3m"], seeds=3, opponents=["smac"], out=str(out), jobs=1)
+    results = run_sweep(config, progress=False, log=lambda _: None)
+    assert events.read_text().splitlines() == [
+        "train 3m-smac-s0 []", "eval 3m-smac-s0", "train 3m-smac-s1 [(0, True)]", "eval 3m-smac-s1",
+        "train 3m-smac-s2 [(0, True), (1, True)]"]
+    assert results["failed"] == ["3m-smac-s2"]
+    assert [(r["seed"], r["blackbox"]["line_front"]) for r in results["runs"]] == [(0, 0.25), (1, 0.25)]
+    # A trained model whose evaluation is missing (the machine stopped between the two) is evaluated, not retrained.
+    (Run("3m", "smac", 1).path(out) / "blackbox.json").unlink()
+    events.unlink()
+    run_sweep(config, progress=False, log=lambda _: None)
+    assert events.read_text().splitlines() == [
+        "eval 3m-smac-s1", "train 3m-smac-s2 [(0, True), (1, True)]"]
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Aggregation and report.
 

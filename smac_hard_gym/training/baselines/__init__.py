@@ -1,8 +1,9 @@
 """Baseline sweeps (``smac-hard-gym baselines``): the SMAC-HARD paper's experiments on this engine with MaskablePPO.
 
 A sweep trains one MaskablePPO run per (map, opponent, seed), each in its own process (``smac-hard-gym train``, so
-memory stays flat over a night of runs), then evaluates every model trained against ``smac`` against each script of
-its map's ``blackbox`` pool (the paper's black-box evaluation, section 6.2), and aggregates everything under ``out``:
+memory stays flat over a night of runs), evaluates each model trained against ``smac`` as soon as it is trained
+against each script of its map's ``blackbox`` pool (the paper's black-box evaluation, section 6.2), and aggregates
+everything under ``out`` as each run ends:
 
 - ``runs/<map>-<opponent>-s<seed>/``: each run's ``train`` files, ``train.log``, and for ``smac`` runs
   ``blackbox.json`` and ``eval.log``;

@@ -1,5 +1,5 @@
-"""Running a sweep (:func:`run_sweep`): the runs not done yet, then the black-box evaluations and value estimates,
-each job in its own process, at most ``jobs`` at a time; then :func:`~.results.aggregate`."""
+"""Running a sweep (:func:`run_sweep`): each run not done yet is trained and then evaluated (black-box, value
+estimates) in its own processes, at most ``jobs`` runs at a time, with :func:`~.results.aggregate` after each."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from typing import Any
 
 from smac_hard_gym.files import write_json
 from smac_hard_gym.training.baselines.planning import (
+    Run,
     SweepConfig,
     blackbox_command,
     plan,
@@ -20,7 +21,7 @@ from smac_hard_gym.training.baselines.planning import (
     train_command,
     value_command,
 )
-from smac_hard_gym.training.baselines.results import aggregate
+from smac_hard_gym.training.baselines.results import MalformedFile, aggregate
 
 __all__ = ["run_sweep"]
 
@@ -34,77 +35,96 @@ def _start(command: list[str], log: Path) -> subprocess.Popen:
                                 preexec_fn=die_with_parent_hook())
 
 
-def _run_all(jobs: Sequence[tuple[str, list[str], Path]], parallel: int, bar: Any,
-             describe: Callable[[str], str]) -> list[str]:
-    """Run ``(key, command, log)`` jobs, at most ``parallel`` at a time, from this (the main) thread so that
-    ``die_with_parent_hook`` holds; returns the keys of the jobs that failed."""
-    pending = list(jobs)
-    running: dict[str, subprocess.Popen] = {}
+Step = tuple[list[str], Path]  # a command and the log it writes
+
+
+def _run_all(jobs: Sequence[tuple[str, Sequence[Step]]], parallel: int, bar: Any, describe: Callable[[str], str],
+             on_done: Callable[[str, bool], None] = lambda key, ok: None) -> list[str]:
+    """Run ``(key, steps)`` jobs, at most ``parallel`` at a time, each job's steps one after another (a step starts
+    when the one before it succeeded), from this (the main) thread so that ``die_with_parent_hook`` holds;
+    ``on_done(key, ok)`` is called as each job ends. Returns the keys of the jobs that failed."""
+    pending = [(key, list(steps)) for key, steps in jobs]
+    running: dict[str, tuple[subprocess.Popen, list[Step]]] = {}
     failed: list[str] = []
     try:
         while pending or running:
             while pending and len(running) < parallel:
-                key, command, log = pending.pop(0)
-                running[key] = _start(command, log)
+                key, steps = pending.pop(0)
+                command, log = steps.pop(0)
+                running[key] = (_start(command, log), steps)
                 if bar is not None:
                     bar.set_postfix_str(describe(key), refresh=True)
             time.sleep(0.2)
-            for key, proc in list(running.items()):
-                if proc.poll() is not None:
-                    del running[key]
-                    if proc.returncode != 0:
-                        failed.append(key)
-                    if bar is not None:
-                        bar.update(1)
+            for key, (proc, steps) in list(running.items()):
+                if proc.poll() is None:
+                    continue
+                if proc.returncode == 0 and steps:
+                    command, log = steps.pop(0)
+                    running[key] = (_start(command, log), steps)
+                    continue
+                del running[key]
+                if proc.returncode != 0:
+                    failed.append(key)
+                if bar is not None:
+                    bar.update(1)
+                on_done(key, proc.returncode == 0)
     finally:
-        for proc in running.values():  # interrupted: our children go with us
+        for proc, _ in running.values():  # interrupted: our children go with us
             proc.kill()
             proc.wait()
     return failed
 
 
+def _evaluations(run: Run, config: SweepConfig) -> list[Step]:
+    """The evaluations a trained run still lacks: black-box for a ``smac`` model, the value estimate for the mixing
+    experiment."""
+    path = run.path(config.out)
+    steps: list[Step] = []
+    if config.blackbox and run.opponent == "smac" and not (path / "blackbox.json").is_file():
+        steps.append((blackbox_command(run, config), path / "eval.log"))
+    if config.values and not (path / "value.json").is_file():
+        steps.append((value_command(run, config), path / "value.log"))
+    return steps
+
+
 def run_sweep(config: SweepConfig, *, progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
-    """Train the runs not done yet, evaluate the ``smac`` models black-box (and the mixing experiment's values),
-    aggregate, and return :func:`aggregate`'s results (also written under ``config.out``)."""
+    """Train the runs not done yet, each followed at once by its evaluations (black-box for the ``smac`` models, the
+    mixing experiment's values), and return :func:`aggregate`'s results. ``results.json`` and the tables are
+    rewritten as each run ends, so a sweep cut short (or its machine lost) keeps every finished run's figures."""
     out = Path(config.out)
     out.mkdir(parents=True, exist_ok=True)
     runs = plan(config)
     states = {run: run_state(run.path(out)) for run in runs}
-    todo = [run for run in runs if states[run] != "done"]
-    log(f"{len(runs)} runs: {len(runs) - len(todo)} done, {sum(s == 'partial' for s in states.values())} partial "
-        f"(redone), {sum(s == 'todo' for s in states.values())} to do")
-    for run in todo:
+    log(f"{len(runs)} runs: {sum(s == 'done' for s in states.values())} done, "
+        f"{sum(s == 'partial' for s in states.values())} partial (redone), "
+        f"{sum(s == 'todo' for s in states.values())} to do")
+    jobs: list[tuple[str, list[Step]]] = []
+    for run in runs:
+        path = run.path(out)
         if states[run] == "partial":
-            shutil.rmtree(run.path(out))
+            shutil.rmtree(path)
+        train = [] if states[run] == "done" else [(train_command(run, config), path / "train.log")]
+        steps = train + _evaluations(run, config)
+        if steps:
+            jobs.append((run.label, steps))
     by_label = {run.label: run for run in runs}
 
     def describe(label: str) -> str:
         run = by_label[label]
         return f"{run.map_name} vs {run.opponent} seed {run.seed}"
 
-    failed: list[str] = []
-    bar = _bar(len(runs), len(runs) - len(todo), "train", progress)
+    def refresh(label: str, ok: bool) -> None:
+        try:
+            aggregate(out, config)
+        except MalformedFile as err:  # reported again by the final aggregation; the sweep goes on
+            log(f"results not refreshed after {label}: {err}")
+
+    bar = _bar(len(runs), len(runs) - len(jobs), "runs", progress)
     try:
-        failed += _run_all([(r.label, train_command(r, config), r.path(out) / "train.log") for r in todo],
-                           config.jobs, bar, describe)
+        failed = _run_all(jobs, config.jobs, bar, describe, on_done=refresh)
     finally:
         if bar is not None:
             bar.close()
-    finished = [run for run in runs if run_state(run.path(out)) == "done"]
-    evals: list[tuple[str, list[str], Path]] = []
-    if config.blackbox:
-        evals += [(r.label, blackbox_command(r, config), r.path(out) / "eval.log") for r in finished
-                  if r.opponent == "smac" and not (r.path(out) / "blackbox.json").is_file()]
-    if config.values:
-        evals += [(r.label, value_command(r, config), r.path(out) / "value.log") for r in finished
-                  if not (r.path(out) / "value.json").is_file()]
-    if evals:
-        bar = _bar(len(evals), 0, "evaluate", progress)
-        try:
-            failed += _run_all(evals, config.jobs, bar, describe)
-        finally:
-            if bar is not None:
-                bar.close()
     results = aggregate(out, config)
     results["failed"] = sorted(set(failed))
     write_json(out / "results.json", results)
