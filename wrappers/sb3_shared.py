@@ -422,11 +422,19 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
 
     def evaluate_actions(self, obs: th.Tensor, actions: th.Tensor,
                          action_masks: th.Tensor | None = None) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+        values, log_prob, entropy, _ = self.evaluate_unit_actions(obs, actions, action_masks)
+        return values, log_prob.sum(dim=1), entropy.sum(dim=1)
+
+    def evaluate_unit_actions(self, obs: th.Tensor, actions: th.Tensor, action_masks: th.Tensor | None = None
+                              ) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
+        """The values (B, 1), and per unit (B, n_units) the log-probability of its action, its entropy and whether
+        it is living (an action other than no-op legal); a dead unit's log-probability and entropy are 0. The joint
+        log-probability and entropy (:meth:`evaluate_actions`) are their sums over the units."""
         if self.value_norm != "none" and int(self.value_normaliser.updates) == 0 and not self._warned_no_update:
             self._warned_no_update = True
             warnings.warn("SharedUnitPolicy trains without value normalisation statistics: pass "
                           "rollout_buffer_class=SharedUnitRolloutBuffer to MaskablePPO (or value_norm='none')",
-                          stacklevel=2)
+                          stacklevel=3)
         x = self._flat(obs)
         batch, n, a = x.shape[0], self.n_units, self.n_unit_actions
         if action_masks is None:
@@ -435,13 +443,14 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
             legal = th.as_tensor(action_masks, dtype=th.bool, device=x.device).reshape(batch, n, a)
         # A dead unit (no-op its only legal action) has log-probability 0, entropy 0 and no gradient whatever its
         # logits: the actor runs on the living units' rows only (about half of them on a long battle)
-        b, u = legal[:, :, 1:].any(dim=2).nonzero(as_tuple=True)
+        living = legal[:, :, 1:].any(dim=2)
+        b, u = living.nonzero(as_tuple=True)
         rows = _MaskedUnitLogProbEntropy.apply(self.unit_rows_logits(x, b, u), legal[b, u],
                                                actions.reshape(batch, n)[b, u])
-        zeros = th.zeros(batch, dtype=x.dtype, device=x.device)
-        log_prob, entropy = (zeros.index_add(0, b, values) for values in rows)
+        zeros = th.zeros(batch, n, dtype=x.dtype, device=x.device)
+        log_prob, entropy = (zeros.index_put((b, u), values) for values in rows)
         values = self._denormalised(self.normalised_values(x), train=True)
-        return values, log_prob, entropy
+        return values, log_prob, entropy, living
 
     def get_distribution(self, obs: th.Tensor, action_masks: np.ndarray | None = None) -> Any:
         return self._distribution(self._flat(obs), action_masks)

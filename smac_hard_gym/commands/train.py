@@ -12,7 +12,7 @@ import json
 from typing import Any
 
 from smac_hard_gym.training.config import POLICIES, POLICY_DEFAULTS, REWARDS
-from smac_hard_gym.training.mappo_settings import CLIP_FOR_EPOCHS
+from smac_hard_gym.training.mappo_settings import CLIP_FOR_EPOCHS, RATIOS
 
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
 
@@ -25,8 +25,9 @@ def _policy_defaults() -> str:
     flags = {"n_epochs": "epochs"}  # the config's field names that the CLI spells otherwise
     clips = ", ".join(f"{clip} with {epochs}" for epochs, clip in CLIP_FOR_EPOCHS.items())
     per_map = {"shared": f"; epochs and frame-stack as MAPPO's launch script for the map has them (one frame where "
-                         f"measured to do as well), clip-range by "
-                         f"epochs: {clips}, or as measured for the map (smac_hard_gym/training/mappo_settings.py)"}
+                         f"measured to do as well), clip-range with --ratio joint by "
+                         f"epochs: {clips}, or as measured for the map, with --ratio unit MAPPO's for the map "
+                         f"(smac_hard_gym/training/mappo_settings.py)"}
     return "; ".join(f"{policy}: " + ", ".join(f"{flags.get(key, key).replace('_', '-')} {value(v)}"
                                                for key, v in table.items()) + per_map.get(policy, "")
                      for policy, table in POLICY_DEFAULTS.items())
@@ -52,6 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(with unit ids, last actions and stacked frames), a critic on the global state sized "
                              "by --net-arch, value normalisation (MAPPO; wrappers/sb3_shared.py). The options below "
                              f"marked 'the policy's' default to {_policy_defaults()}")
+    parser.add_argument("--ratio", default="joint", choices=RATIOS,
+                        help="what PPO's clip applies to: joint: the whole action's probability ratio, as "
+                             "MaskablePPO has it (default); unit: each unit's ratio, MAPPO's loss, with MAPPO's clip "
+                             "for the map (--policy shared only; wrappers/sb3_unit_ppo.py)")
     parser.add_argument("--obs-mode", default=None, choices=("joint", "joint+state", "dict"),
                         help="observation (default: the policy's)")
     parser.add_argument("--frame-stack", type=int, default=None, metavar="K",
@@ -110,7 +115,8 @@ def run(args: argparse.Namespace) -> int:
             map_name=args.map, opponent=args.opponent, timesteps=args.timesteps, num_envs=args.num_envs,
             seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
             obs_mode=args.obs_mode, frame_stack=args.frame_stack, clip_range=args.clip_range,
-            policy=args.policy, n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.epochs,
+            policy=args.policy, ratio=args.ratio, n_steps=args.n_steps, batch_size=args.batch_size,
+            n_epochs=args.epochs,
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, ent_coef_final=args.ent_coef_final,
             reward=args.reward, net_arch=net_arch,
             torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,

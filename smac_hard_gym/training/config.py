@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from smac_hard_gym.smac.frame_stack import check_frame_stack
-from smac_hard_gym.training.mappo_settings import shared_map_defaults
+from smac_hard_gym.training.mappo_settings import RATIOS, shared_map_defaults
 from smac_hard_gym.training.protocol import TEST_SEED_BASE
 
 __all__ = ["TrainConfig", "POLICIES", "REWARDS", "POLICY_DEFAULTS"]
@@ -49,6 +49,9 @@ class TrainConfig:
     eval_episodes: int = 32
     eval_envs: int = 16
     policy: str = "joint"  # "joint": the joint MLP (sb3_policy); "shared": the unit-shared MAPPO policy (sb3_shared)
+    # what PPO's clip applies to: "joint" (SB3's MaskablePPO, the whole action's ratio) or "unit" (each unit's,
+    # MAPPO's loss: sb3_unit_ppo, the shared policy only)
+    ratio: str = "joint"
     # None: the policy's default (POLICY_DEFAULTS), filled in when the config is made
     obs_mode: str | None = None
     frame_stack: int | None = None  # each unit's last k SMAC observations (the envs' frame_stack option)
@@ -81,8 +84,13 @@ class TrainConfig:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         defaults = dict(POLICY_DEFAULTS[self.policy])
         minibatches = 1
+        if self.ratio not in RATIOS:
+            raise ValueError(f"ratio must be one of {RATIOS}, got {self.ratio!r}")
+        if self.ratio == "unit" and self.policy != "shared":
+            raise ValueError("ratio 'unit' clips each unit's probability ratio, which only the shared policy gives "
+                             "(policy 'shared'); the joint MLP trains with ratio 'joint'")
         if self.policy == "shared":
-            per_map = shared_map_defaults(self.map_name)
+            per_map = shared_map_defaults(self.map_name, self.ratio)
             minibatches = per_map.pop("minibatches")
             defaults.update(per_map)
         for name, value in defaults.items():

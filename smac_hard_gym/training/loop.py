@@ -82,8 +82,13 @@ def _train(config: TrainConfig, log: Callable[[str], None]) -> dict[str, Any]:
     buffer = MaskableJointDictRolloutBuffer if dict_obs else MaskableJointRolloutBuffer
     if config.policy == "shared":  # one actor for every unit, state critic, value normalisation (sb3_shared.py)
         policy, buffer = SharedUnitPolicy, SharedUnitRolloutBuffer
-    model = MaskablePPO(policy, venv, rollout_buffer_class=buffer, tensorboard_log=config.tensorboard or None,
-                        **config.ppo_kwargs())
+    algorithm = MaskablePPO
+    if config.ratio == "unit":  # MAPPO's loss: each unit's ratio clipped (sb3_unit_ppo.py)
+        from smac_hard_gym.wrappers.sb3_unit_ppo import UnitRatioMaskablePPO
+
+        algorithm = UnitRatioMaskablePPO
+    model = algorithm(policy, venv, rollout_buffer_class=buffer, tensorboard_log=config.tensorboard or None,
+                      **config.ppo_kwargs())
     if not config.tensorboard:
         # SB3's default logger makes an empty folder /tmp/SB3-<time> on every learn(), even when it writes nothing.
         from stable_baselines3.common.logger import Logger

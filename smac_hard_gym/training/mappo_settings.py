@@ -9,12 +9,15 @@ update, as our 64 battles x 50 steps), learning rate 5e-4, entropy 0.01, gamma 0
 - ``minibatches`` (``--num_mini_batch``): 1, except 2 on MMM2;
 - ``memory``: "gru" where the script runs ``rmappo`` (a recurrent actor and critic), "frames" where it runs
   ``mappo`` with ``--use_stacked_frames --stacked_frames 4`` (3s_vs_4z, 3s_vs_5z), "none" where it runs ``mappo``
-  without stacking (corridor, 6h_vs_8z).
+  without stacking (corridor, 6h_vs_8z);
+- ``clip`` (``--clip_param``): each agent's probability ratio is clipped at 0.2, at 0.05 on 3s_vs_5z, 5m_vs_6m and
+  8m_vs_9m.
 
 The shared policy has no recurrent core; its memory is stacked frames, so "gru" and "frames" both give 4 frames
-(the number MAPPO stacks) and "none" gives 1. MAPPO's clip range does not carry over: MAPPO clips each agent's
-probability ratio (0.2; 0.05 on 3s_vs_5z, 5m_vs_6m and 8m_vs_9m), SB3 the joint one, the product over the units.
-The shared policy's clip on the joint ratio is measured instead (docs/training_results.md): 0.05 where MAPPO runs 15
+(the number MAPPO stacks) and "none" gives 1. MAPPO's clip carries over where the ratio is MAPPO's, per unit
+(``train --ratio unit``, :mod:`~smac_hard_gym.wrappers.sb3_unit_ppo`). SB3's MaskablePPO (``--ratio joint``) clips
+the joint ratio, the product over the units, so there MAPPO's clip does not carry over and the shared policy's clip
+on the joint ratio is measured instead (docs/training_results.md): 0.05 where MAPPO runs 15
 epochs (2s_vs_1sc: 1.00 on three seeds, where 0.2 lost two of them; 3s_vs_5z), 0.2 where it runs 10 or 5, its
 larger maps (25m and 27m_vs_30m learn nothing in 200k steps at 0.05 with those epochs; they win at 0.2): fewer
 gradient passes an update take a looser trust region. Not carried over either: MMM2's ``--gain 1`` (the initial
@@ -34,37 +37,43 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["MAPPO_SMAC", "MAPPO_DEFAULT", "MEASURED", "FRAMES_FOR_MEMORY", "CLIP_FOR_EPOCHS", "shared_map_defaults"]
+__all__ = ["MAPPO_SMAC", "MAPPO_DEFAULT", "MEASURED", "FRAMES_FOR_MEMORY", "CLIP_FOR_EPOCHS", "RATIOS",
+           "shared_map_defaults"]
 
 # MAPPO's config.py defaults (a map without a script)
-MAPPO_DEFAULT: dict[str, Any] = {"epochs": 15, "minibatches": 1, "memory": "gru"}
+MAPPO_DEFAULT: dict[str, Any] = {"epochs": 15, "minibatches": 1, "memory": "gru", "clip": 0.2}
 
 # what differs from MAPPO_DEFAULT in each map's script
 MAPPO_SMAC: dict[str, dict[str, Any]] = {
     "3m": {}, "8m": {}, "MMM": {}, "1c3s5z": {}, "2m_vs_1z": {}, "2s_vs_1sc": {}, "3s_vs_3z": {},
     "bane_vs_bane": {}, "so_many_baneling": {},
     "25m": {"epochs": 10}, "10m_vs_11m": {"epochs": 10},
-    "5m_vs_6m": {"epochs": 10}, "8m_vs_9m": {},
+    "5m_vs_6m": {"epochs": 10, "clip": 0.05}, "8m_vs_9m": {"clip": 0.05},
     "27m_vs_30m": {"epochs": 5}, "3s5z": {"epochs": 5}, "3s5z_vs_3s6z": {"epochs": 5}, "2c_vs_64zg": {"epochs": 5},
     "MMM2": {"epochs": 5, "minibatches": 2},
     "3s_vs_4z": {"memory": "frames"},
-    "3s_vs_5z": {"memory": "frames"},
+    "3s_vs_5z": {"memory": "frames", "clip": 0.05},
     "corridor": {"epochs": 5, "memory": "none"}, "6h_vs_8z": {"epochs": 5, "memory": "none"},
 }
 
 # where our measurements differ from MAPPO's choice (docs/training_results.md, "MAPPO's settings for each map");
-# "clip" overrides CLIP_FOR_EPOCHS: on 3s_vs_5z MAPPO's per-unit 0.05 over three units (1.05 ** 3 = 1.16)
+# "joint_clip" overrides CLIP_FOR_EPOCHS: on 3s_vs_5z MAPPO's per-unit 0.05 over three units (1.05 ** 3 = 1.16)
 MEASURED: dict[str, dict[str, Any]] = {"27m_vs_30m": {"memory": "none"}, "25m": {"memory": "none"},
-                                       "3s_vs_5z": {"clip": 0.15}}
+                                       "3s_vs_5z": {"joint_clip": 0.15}}
 
 FRAMES_FOR_MEMORY = {"gru": 4, "frames": 4, "none": 1}
 CLIP_FOR_EPOCHS = {15: 0.05, 10: 0.2, 5: 0.2}  # the joint ratio's clip by MAPPO's epochs for the map (measured)
 
 
-def shared_map_defaults(map_name: str) -> dict[str, Any]:
-    """The shared policy's TrainConfig defaults for ``map_name``: ``n_epochs``, ``frame_stack``, ``clip_range`` and
-    ``minibatches`` (the rollout is split into that many minibatches)."""
+RATIOS = ("joint", "unit")  # what PPO clips: SB3's joint ratio, or each unit's (MAPPO's)
+
+
+def shared_map_defaults(map_name: str, ratio: str = "joint") -> dict[str, Any]:
+    """The shared policy's TrainConfig defaults for ``map_name``: ``n_epochs``, ``frame_stack``, ``clip_range`` (for
+    the ``ratio`` PPO clips) and ``minibatches`` (the rollout is split into that many minibatches)."""
+    if ratio not in RATIOS:
+        raise ValueError(f"ratio must be one of {RATIOS}, got {ratio!r}")
     settings = {**MAPPO_DEFAULT, **MAPPO_SMAC.get(map_name, {}), **MEASURED.get(map_name, {})}
+    clip = settings["clip"] if ratio == "unit" else settings.get("joint_clip", CLIP_FOR_EPOCHS[settings["epochs"]])
     return {"n_epochs": settings["epochs"], "frame_stack": FRAMES_FOR_MEMORY[settings["memory"]],
-            "clip_range": settings.get("clip", CLIP_FOR_EPOCHS[settings["epochs"]]),
-            "minibatches": settings["minibatches"]}
+            "clip_range": clip, "minibatches": settings["minibatches"]}
