@@ -25,12 +25,14 @@ trains is an ordinary MaskablePPO model: ``MaskablePPO.load`` plays it.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import NamedTuple
 
 import numpy as np
 import torch as th
 import torch.nn.functional as F
 from sb3_contrib import MaskablePPO
+from sb3_contrib.common.maskable.buffers import MaskableRolloutBufferSamples
 from stable_baselines3.common.utils import explained_variance
 
 from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
@@ -88,7 +90,8 @@ class UnitRatioMaskablePPO(MaskablePPO):
                 parts.append(log_prob)
         return th.cat(parts)
 
-    def _minibatches(self, old_unit_log_prob: th.Tensor):  # noqa: ANN202 (a generator of (samples, old log-probs))
+    def _minibatches(self, old_unit_log_prob: th.Tensor) -> Iterator[tuple[MaskableRolloutBufferSamples, th.Tensor]]:
+        """The update's minibatches, each with its rows' old per-unit log-probabilities."""
         buffer = self.rollout_buffer
         total = buffer.buffer_size * buffer.n_envs
         if self.batch_size is None or self.batch_size >= total:  # the whole rollout, in the buffer's order
