@@ -39,10 +39,10 @@ Step = tuple[list[str], Path]  # a command and the log it writes
 
 
 def _run_all(jobs: Sequence[tuple[str, Sequence[Step]]], parallel: int, bar: Any, describe: Callable[[str], str],
-             on_done: Callable[[str, bool], None] = lambda key, ok: None) -> list[str]:
+             on_done: Callable[[str], None] = lambda key: None) -> list[str]:
     """Run ``(key, steps)`` jobs, at most ``parallel`` at a time, each job's steps one after another (a step starts
     when the one before it succeeded), from this (the main) thread so that ``die_with_parent_hook`` holds;
-    ``on_done(key, ok)`` is called as each job ends. Returns the keys of the jobs that failed."""
+    ``on_done(key)`` is called as each job ends, failed or not. Returns the keys of the jobs that failed."""
     pending = [(key, list(steps)) for key, steps in jobs]
     running: dict[str, tuple[subprocess.Popen, list[Step]]] = {}
     failed: list[str] = []
@@ -67,7 +67,7 @@ def _run_all(jobs: Sequence[tuple[str, Sequence[Step]]], parallel: int, bar: Any
                     failed.append(key)
                 if bar is not None:
                     bar.update(1)
-                on_done(key, proc.returncode == 0)
+                on_done(key)
     finally:
         for proc, _ in running.values():  # interrupted: our children go with us
             proc.kill()
@@ -113,7 +113,7 @@ def run_sweep(config: SweepConfig, *, progress: bool = True, log: Callable[[str]
         run = by_label[label]
         return f"{run.map_name} vs {run.opponent} seed {run.seed}"
 
-    def refresh(label: str, ok: bool) -> None:
+    def refresh(label: str) -> None:
         try:
             aggregate(out, config)
         except MalformedFile as err:  # reported again by the final aggregation; the sweep goes on
