@@ -183,3 +183,34 @@ def test_a_run_saved_before_frame_stacking_loads_as_single_frames(tmp_path):
     (tmp_path / "config.json").write_text(json.dumps(old))
     config = load_run_config(tmp_path / "model.zip")
     assert config.frame_stack == 1 and config.env_kwargs()["frame_stack"] == 1
+
+
+def test_max_grad_norm_is_validated_and_names_the_bad_value():
+    for bad in (0, -1.0, float("inf"), float("nan"), "10", True):
+        with pytest.raises(ValueError, match=r"max_grad_norm must be a finite number > 0, got"):
+            TrainConfig(max_grad_norm=bad, out="x")
+    assert TrainConfig(out="x").max_grad_norm == 0.5  # SB3's PPO default
+
+
+@pytest.mark.parametrize("policy, norm", [("joint", None), ("shared", 10.0)])
+def test_every_optimiser_step_clips_the_gradient_at_max_grad_norm(tmp_path, monkeypatch, policy, norm):
+    # 4 battles x 64 steps, 512 steps: two updates of one epoch over two minibatches of 128, four optimiser steps,
+    # each clipping the policy's gradient at the run's norm (SB3's 0.5 unless --max-grad-norm says otherwise)
+    import torch
+
+    clips = []
+    clip = torch.nn.utils.clip_grad_norm_
+
+    def recording_clip(parameters, max_norm, *args, **kwargs):
+        clips.append(max_norm)
+        return clip(parameters, max_norm, *args, **kwargs)
+
+    monkeypatch.setattr(torch.nn.utils, "clip_grad_norm_", recording_clip)
+    out = tmp_path / "run"
+    extra = [] if norm is None else ["--max-grad-norm", str(norm)]
+    assert main(["train", "--map", "3m", "--opponent", "base", "--policy", policy, "--timesteps", "512",
+                 "--num-envs", "4", "--n-steps", "64", "--batch-size", "128", "--epochs", "1", "--eval-every", "512",
+                 "--eval-episodes", "2", "--no-progress", *extra, "--out", str(out)]) == 0
+    expected = 0.5 if norm is None else norm
+    assert clips == [expected] * 4
+    assert json.loads((out / "config.json").read_text())["max_grad_norm"] == expected

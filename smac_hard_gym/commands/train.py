@@ -72,6 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ent-coef-final", type=float, default=None, metavar="COEF",
                         help="let the entropy coefficient fall linearly from --ent-coef at the first update to COEF "
                              "at the last (default: --ent-coef throughout)")
+    parser.add_argument("--max-grad-norm", type=float, default=0.5, metavar="NORM",
+                        help="clip the gradient's global norm to NORM before each optimiser step (default 0.5, "
+                             "SB3's; MAPPO clips the actor's and the critic's at 10 each)")
     parser.add_argument("--gamma", type=float, default=0.99)
     parser.add_argument("--reward", default="positive", choices=REWARDS,
                         help="the training battles' reward: positive (SMAC's default: damage dealt and kills), "
@@ -118,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
             policy=args.policy, ratio=args.ratio, n_steps=args.n_steps, batch_size=args.batch_size,
             n_epochs=args.epochs,
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, ent_coef_final=args.ent_coef_final,
+            max_grad_norm=args.max_grad_norm,
             reward=args.reward, net_arch=net_arch,
             torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
             tensorboard=args.tensorboard, league=args.league, league_every=args.league_every,

@@ -63,6 +63,9 @@ class TrainConfig:
     gae_lambda: float = 0.95
     clip_range: float | None = None
     ent_coef: float = 0.01
+    # the gradient's global norm is clipped to this before each optimiser step (SB3's default; MAPPO clips the
+    # actor's and the critic's gradients at 10 each)
+    max_grad_norm: float = 0.5
     # None: ent_coef throughout; a float: the entropy coefficient falls linearly from ent_coef at step 0 to this at
     # the last step (set before each update)
     ent_coef_final: float | None = None
@@ -123,6 +126,10 @@ class TrainConfig:
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                     or not np.isfinite(value) or value < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if isinstance(self.max_grad_norm, bool) or not isinstance(self.max_grad_norm, (int, float, np.integer,
+                                                                                      np.floating)) \
+                or not np.isfinite(self.max_grad_norm) or self.max_grad_norm <= 0:
+            raise ValueError(f"max_grad_norm must be a finite number > 0, got {self.max_grad_norm!r}")
         if self.reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
         if self.policy == "shared" and self.obs_mode == "dict":
@@ -199,5 +206,6 @@ class TrainConfig:
             policy_kwargs["frame_stack"] = self.frame_stack  # recorded with the model for opponents and evaluations
         return {"n_steps": self.n_steps, "batch_size": self.batch_size, "n_epochs": self.n_epochs,
                 "learning_rate": self.learning_rate, "gamma": self.gamma, "gae_lambda": self.gae_lambda,
-                "clip_range": self.clip_range, "ent_coef": self.ent_coef, "seed": self.seed, "device": "cpu",
+                "clip_range": self.clip_range, "ent_coef": self.ent_coef, "max_grad_norm": self.max_grad_norm,
+                "seed": self.seed, "device": "cpu",
                 "verbose": 0, "policy_kwargs": policy_kwargs}
