@@ -22,6 +22,7 @@ POLICIES = ("joint", "shared")  # train --policy
 # also pays for enemy regeneration and healing (what the SMAC-HARD paper's runs were paid). Test evaluations keep
 # smac-hard-gym's default, so test returns compare across runs.
 REWARDS = ("positive", "signed", "abs")
+_NUMBER = (int, float, np.integer, np.floating)  # what a numeric setting may be (bools refused apart)
 
 # What each policy trains with unless told otherwise (train's defaults; docs/training_results.md measures them). The
 # joint MLP keeps the first sweep's PPO settings. The shared policy takes MAPPO's for SMAC: 64 battles x 50 steps
@@ -63,12 +64,12 @@ class TrainConfig:
     gae_lambda: float = 0.95
     clip_range: float | None = None
     ent_coef: float = 0.01
-    # the gradient's global norm is clipped to this before each optimiser step (SB3's default; MAPPO clips the
-    # actor's and the critic's gradients at 10 each)
-    max_grad_norm: float = 0.5
     # None: ent_coef throughout; a float: the entropy coefficient falls linearly from ent_coef at step 0 to this at
     # the last step (set before each update)
     ent_coef_final: float | None = None
+    # the gradient's global norm is clipped to this before each optimiser step (SB3's default; MAPPO clips the
+    # actor's and the critic's gradients at 10 each)
+    max_grad_norm: float = 0.5
     reward: str = "positive"  # the training battles' reward (REWARDS); evaluations use SMAC's default
     net_arch: list[int] = field(default_factory=lambda: [128, 128])
     torch_threads: int = 1
@@ -123,12 +124,11 @@ class TrainConfig:
             value = getattr(self, name)
             if value is None and name == "ent_coef_final":
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            if isinstance(value, bool) or not isinstance(value, _NUMBER) \
                     or not np.isfinite(value) or value < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if isinstance(self.max_grad_norm, bool) or not isinstance(self.max_grad_norm, (int, float, np.integer,
-                                                                                      np.floating)) \
-                or not np.isfinite(self.max_grad_norm) or self.max_grad_norm <= 0:
+        norm = self.max_grad_norm
+        if isinstance(norm, bool) or not isinstance(norm, _NUMBER) or not np.isfinite(norm) or norm <= 0:
             raise ValueError(f"max_grad_norm must be a finite number > 0, got {self.max_grad_norm!r}")
         if self.reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
