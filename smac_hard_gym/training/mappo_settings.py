@@ -31,8 +31,8 @@ faster; on 25m one frame wins 1.00 from 200k steps on two seeds, four frames 0.7
 marine's cooldown, 13.8 game loops, is under two env steps, so there is little to remember. On 3s_vs_5z a joint
 clip of 0.15, near MAPPO's per-unit 0.05 over three units (1.05^3 = 1.16), won 0.69, 1.00 and 1.00 at 2M steps
 (seeds 0-2) where 0.05 won 0.00, 0.09 and 1.00 (the engine with C14); on 3s_vs_4z 0.15 won 1.00 on seeds 0-2 at 1M
-steps where 0.05 won 0.16 (seed 0); on 8m_vs_9m, MAPPO's 15-epoch map with eight units, 0.2 won 1.00 on seeds
-0-2 at 1M steps where 0.05 won 0.78 (seed 0).
+steps where 0.05 won 0.16 (seed 0); on 8m_vs_9m, MAPPO's 15-epoch map with eight units, 0.2 won 1.00, 1.00 and
+0.94 on seeds 0-2 at 1M steps where 0.05 won 0.78 (seed 0).
 """
 
 from __future__ import annotations
