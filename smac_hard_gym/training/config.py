@@ -22,7 +22,13 @@ POLICIES = ("joint", "shared")  # train --policy
 # also pays for enemy regeneration and healing (what the SMAC-HARD paper's runs were paid). Test evaluations keep
 # smac-hard-gym's default, so test returns compare across runs.
 REWARDS = ("positive", "signed", "abs")
-_NUMBER = (int, float, np.integer, np.floating)  # what a numeric setting may be (bools refused apart)
+
+
+def _finite_number(value: Any) -> bool:
+    """Whether a numeric setting is a finite int or float (numpy's too; a bool is not a number here)."""
+    return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)) \
+        and bool(np.isfinite(value))
+
 
 # What each policy trains with unless told otherwise (train's defaults; docs/training_results.md measures them). The
 # joint MLP keeps the first sweep's PPO settings. The shared policy takes MAPPO's for SMAC: 64 battles x 50 steps
@@ -124,11 +130,9 @@ class TrainConfig:
             value = getattr(self, name)
             if value is None and name == "ent_coef_final":
                 continue
-            if isinstance(value, bool) or not isinstance(value, _NUMBER) \
-                    or not np.isfinite(value) or value < 0:
+            if not _finite_number(value) or value < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        norm = self.max_grad_norm
-        if isinstance(norm, bool) or not isinstance(norm, _NUMBER) or not np.isfinite(norm) or norm <= 0:
+        if not _finite_number(self.max_grad_norm) or self.max_grad_norm <= 0:
             raise ValueError(f"max_grad_norm must be a finite number > 0, got {self.max_grad_norm!r}")
         if self.reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
