@@ -19,8 +19,9 @@ pytestmark = pytest.mark.slow
 
 
 def _final_win_rate(tmp_path, map_name: str, opponent: str, timesteps: int = 102_400) -> float:
-    config = TrainConfig(map_name=map_name, opponent=opponent, timesteps=timesteps, num_envs=64, n_steps=32,
-                         eval_every=timesteps, eval_episodes=32, seed=0, out=str(tmp_path / "run"), progress=False)
+    config = TrainConfig(map_name=map_name, opponent=opponent, policy="joint", timesteps=timesteps, num_envs=64,
+                         n_steps=32, eval_every=timesteps, eval_episodes=32, seed=0, out=str(tmp_path / "run"),
+                         progress=False)
     summary = train(config, log=lambda _: None)
     assert not summary["interrupted"]
     return summary["final_win_rate"]

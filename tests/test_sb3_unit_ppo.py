@@ -193,7 +193,7 @@ def test_ratio_unit_takes_mappos_clip_for_the_map(map_name):
 
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"ratio": "units", "policy": "shared"}, "ratio must be one of"),
-    ({"ratio": "unit"}, "only the shared policy"),
+    ({"ratio": "unit", "policy": "joint"}, "only the shared policy"),
 ])
 def test_bad_ratio_settings_are_refused(kwargs, message):
     with pytest.raises(ValueError, match=message):

@@ -238,7 +238,7 @@ def test_maskable_ppo_on_the_subprocess_env_learns_to_beat_base_on_3m():
     from smac_hard_gym.wrappers.sb3_buffers import MaskableJointRolloutBuffer
     from smac_hard_gym.wrappers.sb3_policy import MaskableJointPolicy
 
-    config = TrainConfig(map_name="3m", opponent="base", seed=0)
+    config = TrainConfig(map_name="3m", opponent="base", seed=0, policy="joint")
     sub = make_subproc_env("3m", 2, config.num_envs // 2, autoreset_mode="SameStep", opponent="base")
     try:
         venv = VecMonitor(SB3VecEnv(sub))

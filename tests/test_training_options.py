@@ -165,7 +165,7 @@ def test_mappos_table_names_every_map_with_a_script_and_only_known_maps():
 
 
 def test_the_joint_policy_keeps_the_first_sweeps_settings_and_overrides_are_kept():
-    joint = TrainConfig(map_name="27m_vs_30m")  # the first sweep's settings, on every map
+    joint = TrainConfig(map_name="27m_vs_30m", policy="joint")  # the first sweep's settings, on every map
     assert (joint.obs_mode, joint.frame_stack, joint.n_steps, joint.batch_size, joint.n_epochs, joint.clip_range) \
         == ("joint", 1, 32, 512, 10, 0.2)
     mine = TrainConfig(map_name="MMM2", policy="shared", frame_stack=1, n_epochs=4, clip_range=0.1, batch_size=256)

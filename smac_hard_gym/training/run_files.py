@@ -104,6 +104,8 @@ def load_run_config(model_path: str | Path) -> TrainConfig | None:
                          f"{type(data).__name__})")
     # Runs saved before frame stacking existed trained on single frames (their other settings are all saved).
     data.setdefault("frame_stack", 1)
+    # Runs saved before `train --policy` existed trained the joint MLP, the default of the time.
+    data.setdefault("policy", "joint")
     known = {f.name for f in fields(TrainConfig)}
     for key in ("map_name", "opponent", "obs_mode", "policy", "out", "tensorboard", "league_weighting"):
         if key in data and not isinstance(data[key], str):
