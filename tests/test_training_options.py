@@ -185,6 +185,16 @@ def test_a_run_saved_before_frame_stacking_loads_as_single_frames(tmp_path):
     assert config.frame_stack == 1 and config.env_kwargs()["frame_stack"] == 1
 
 
+def test_a_run_saved_before_the_policy_option_loads_as_the_joint_mlp(tmp_path):
+    # The first sweep's config.json files have no "policy": those runs trained the joint MLP (sb3_policy).
+    from smac_hard_gym.training.run_files import load_run_config
+
+    old = {"map_name": "3m", "obs_mode": "joint", "n_steps": 32, "batch_size": 512, "n_epochs": 10, "clip_range": 0.2}
+    (tmp_path / "config.json").write_text(json.dumps(old))
+    config = load_run_config(tmp_path / "model.zip")
+    assert config.policy == "joint" and config.obs_mode == "joint"
+
+
 def test_max_grad_norm_is_validated_and_names_the_bad_value():
     for bad in (0, -1.0, float("inf"), float("nan"), "10", True):
         with pytest.raises(ValueError, match=r"max_grad_norm must be a finite number > 0, got"):
