@@ -16,7 +16,9 @@ Episode ``k`` starts with ``env.reset(seed=seed0 + k)``. The measurement reads t
 access, see ``smac_hard_gym/engine/state.py``). Reach is a marine's on a marine, centre to centre:
 5 + 0.375 + 0.375 = 5.75. The "fight" starts with the first env step in which any unit fires. Reported:
 
-- win rate, mean episode length, learner survivors, learner HP left and enemy HP left at the end;
+- win rate, draws (both sides dead after the same env step, which SMAC counts as neither side's win), mean episode
+  length, the env step of the learner's first shot (mean over the episodes with one), learner survivors, learner
+  HP left and enemy HP left at the end;
 - the opening, the first 6 fight steps: enemy shots per episode (in all and per enemy slot), and the share of alive
   enemies with no learner within reach at the start of each of those steps (mean over the steps);
 - enemy marine-steps (alive through a step; an episode's last step is left out): the share whose target is out of
@@ -186,7 +188,9 @@ def play(env: StarCraft2Env, policy: Policy, seed: int, eps: float, rng: np.rand
             focus.append(float((shots == min(later)[1]).mean()))
     alive_hp = before.health * before.alive
     out |= {"won": bool(info.get("battle_won", False)), "survivors": int(before.alive[:n].sum()),
-            "learner_hp": float(alive_hp[:n].sum()), "enemy_hp": float(alive_hp[n:].sum()), "focus": focus}
+            "learner_hp": float(alive_hp[:n].sum()), "enemy_hp": float(alive_hp[n:].sum()), "focus": focus,
+            "draw": not before.alive.any(),  # both sides dead after the same env step: neither won (SMAC)
+            "first_shot": learner_shots[0][0] if learner_shots else None}
     return out
 
 
@@ -199,8 +203,11 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
 
     enemy_steps = sum(e["enemy_steps"] for e in episodes)
     per_slot = np.mean([e["opening_shots"] for e in episodes], axis=0)
+    first_shots = [e["first_shot"] for e in episodes if e["first_shot"] is not None]
     return {
-        "win_rate": mean("won"), "mean_length": mean("steps"), "learner_survivors": mean("survivors"),
+        "win_rate": mean("won"), "draw_rate": mean("draw"), "mean_length": mean("steps"),
+        "first_learner_shot": float(np.mean(first_shots)) if first_shots else None,
+        "learner_survivors": mean("survivors"),
         "learner_hp_left": mean("learner_hp"), "enemy_hp_left": mean("enemy_hp"),
         "opening_enemy_shots": float(per_slot.sum()), "opening_enemy_shots_per_slot": per_slot.round(2).tolist(),
         "opening_no_reach_share": float(np.mean(pooled("no_reach"))),
@@ -210,7 +217,8 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-COLUMNS = {"win_rate": "win rate", "mean_length": "mean length", "learner_survivors": "learner survivors",
+COLUMNS = {"win_rate": "win rate", "draw_rate": "draws", "mean_length": "mean length",
+           "first_learner_shot": "first learner shot (step)", "learner_survivors": "learner survivors",
            "learner_hp_left": "learner HP left", "enemy_hp_left": "enemy HP left",
            "opening_enemy_shots": "opening enemy shots", "opening_enemy_shots_per_slot": "… per enemy slot",
            "opening_no_reach_share": "opening: enemies with no learner in reach",
@@ -220,10 +228,12 @@ COLUMNS = {"win_rate": "win rate", "mean_length": "mean length", "learner_surviv
 
 def table(rows: dict[str, dict[str, Any]]) -> str:
     def cell(v: Any) -> str:
+        if v is None:
+            return "–"  # not measured: a replay recorded before the column existed, or no learner shot
         return " / ".join(f"{x:.1f}" for x in v) if isinstance(v, list) else f"{v:.3g}" if v < 10 else f"{v:.1f}"
 
     lines = ["| replay | " + " | ".join(COLUMNS.values()) + " |", "|---" * (len(COLUMNS) + 1) + "|"]
-    lines += [f"| {name} | " + " | ".join(cell(r[k]) for k in COLUMNS) + " |" for name, r in rows.items()]
+    lines += [f"| {name} | " + " | ".join(cell(r.get(k)) for k in COLUMNS) + " |" for name, r in rows.items()]
     return "\n".join(lines)
 
 
