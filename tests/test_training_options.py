@@ -156,6 +156,19 @@ def test_the_shared_policy_defaults_to_mappos_settings_for_the_map(map_name):
                        n_steps=np.int64(400)).batch_size == 3200 // minibatches
 
 
+def test_the_shared_policy_on_3m_takes_the_measured_quick_start_settings():
+    # MAPPO's 3m script is its defaults (15 epochs, one minibatch); measured for the quick start instead: 10 epochs
+    # of 4 minibatches of the 3,200-sample rollout, the joint ratio clipped at 0.2 (docs/training_results.md)
+    config = TrainConfig(map_name="3m", policy="shared", num_envs=64)
+    assert (config.n_steps, config.n_epochs, config.batch_size, config.clip_range, config.frame_stack) \
+        == (50, 10, 800, 0.2, 4)
+    assert TrainConfig(map_name="8m", policy="shared", num_envs=64).n_epochs == 15  # MAPPO's, unmeasured
+
+
+def test_train_defaults_to_the_shared_policy():
+    assert TrainConfig(out="x").policy == "shared"
+
+
 def test_mappos_table_names_every_map_with_a_script_and_only_known_maps():
     from smac_hard_gym.maps import list_maps
     from smac_hard_gym.training.mappo_settings import MAPPO_SMAC

@@ -48,10 +48,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-every", type=int, default=0,
                         help="env steps between evaluations (default: a tenth of --timesteps)")
     parser.add_argument("--eval-episodes", type=int, default=32, help="episodes per evaluation (default 32)")
-    parser.add_argument("--policy", default="joint", choices=POLICIES,
-                        help="joint: one MLP over all units (default); shared: one 64x64 actor shared by the units "
-                             "(with unit ids, last actions and stacked frames), a critic on the global state sized "
-                             "by --net-arch, value normalisation (MAPPO; wrappers/sb3_shared.py). The options below "
+    parser.add_argument("--policy", default="shared", choices=POLICIES,
+                        help="shared (default): one 64x64 actor shared by the units (with unit ids, last actions and "
+                             "stacked frames), a critic on the global state sized by --net-arch, value normalisation "
+                             "(MAPPO; wrappers/sb3_shared.py); joint: one MLP over all units (the first sweep's "
+                             "policy; docs/training_results.md compares them). The options below "
                              f"marked 'the policy's' default to {_policy_defaults()}")
     parser.add_argument("--ratio", default="joint", choices=RATIOS,
                         help="what PPO's clip applies to: joint: the whole action's probability ratio, as "

@@ -55,7 +55,7 @@ class TrainConfig:
     eval_every: int = 0  # env steps between evaluations; 0: a tenth of the run
     eval_episodes: int = 32
     eval_envs: int = 16
-    policy: str = "joint"  # "joint": the joint MLP (sb3_policy); "shared": the unit-shared MAPPO policy (sb3_shared)
+    policy: str = "shared"  # "shared": the unit-shared MAPPO policy (sb3_shared); "joint": the joint MLP (sb3_policy)
     # what PPO's clip applies to: "joint" (SB3's MaskablePPO, the whole action's ratio) or "unit" (each unit's,
     # MAPPO's loss: sb3_unit_ppo, the shared policy only)
     ratio: str = "joint"
