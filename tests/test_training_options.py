@@ -166,7 +166,14 @@ def test_the_shared_policy_on_3m_takes_the_measured_quick_start_settings():
 
 
 def test_train_defaults_to_the_shared_policy():
-    assert TrainConfig(out="x").policy == "shared"
+    # the CLI's default and TrainConfig's are two literals: both must say the same
+    import argparse
+
+    from smac_hard_gym.commands.train import add_arguments
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert parser.parse_args([]).policy == TrainConfig(out="x").policy == "shared"
 
 
 def test_mappos_table_names_every_map_with_a_script_and_only_known_maps():
