@@ -73,9 +73,20 @@ def loops_until(engine: BattleEngine, condition, max_loops: int) -> int:
     raise AssertionError(f"condition not reached within {max_loops} loops")
 
 
-def shot_loop(n: int, period_loops: float) -> int:
-    """Loop index (0-based, first shot at 0) of the n-th shot of a weapon with the given period."""
-    return math.ceil(n * period_loops - 1e-9)
+# The wind-up before each shot: the weapon data's DamagePoint in Normal seconds (SC2GameData 5.0.14, WeaponData.xml:
+# GuassRifle 0.05, ThermalLances 0.0832, NeedleSpines 0.14 in voidmulti, ImpalerTentacle 0.3332, PunisherGrenades,
+# PsiBlades and VolatileBurst 0; ParticleDisruptors and Claws keep core's default 0.167), as whole game loops: an
+# attack that starts in loop L shoots in loop L + ceil(seconds x 16).
+WIND_UP = {name: math.ceil(seconds * 16 - 1e-9) for name, seconds in {
+    "Marine": 0.05, "Marauder": 0.0, "Stalker": 0.167, "Zealot": 0.0, "Colossus": 0.0832, "Hydralisk": 0.14,
+    "Zergling": 0.167, "Baneling": 0.0, "SpineCrawler": 0.3332}.items()}
+
+
+def shot_loop(n: int, period_loops: float, wind_up: int = 0) -> int:
+    """Loop index (0-based) of the n-th shot (n = 0 first) of a weapon with the given period whose first attack
+    starts in loop 0 and takes ``wind_up`` loops: the wind-ups after the first overlap the cooldown, so shots keep
+    the period."""
+    return wind_up + math.ceil(n * period_loops - 1e-9)
 
 
 def overlaps(engine: BattleEngine, b: int) -> list[tuple[int, int, float]]:

@@ -1,7 +1,9 @@
 """Combat mechanics against hand-computed fights from the unit facts of docs/smac_interface.md §8.
 
 Periods in game loops (Normal speed, 16 loops per second): marine 0.8608 s, stalker 1.87 s, zealot 1.2 s,
-marauder 1.5 s, colossus 1.5 s. A weapon that fires at loop 0 fires its n-th shot at loop ceil(n * period).
+marauder 1.5 s, colossus 1.5 s. Each attack winds up for its weapon's damage point first (``WIND_UP``, whole loops:
+marine 1, stalker 3, colossus 2, zealot and marauder 0), so a weapon whose first attack starts in loop 0 fires its
+n-th shot at loop W + ceil(n * period) (``shot_loop``).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from engine_helpers import engine_with, loops_until, shot_loop
+from engine_helpers import WIND_UP, engine_with, loops_until, shot_loop
 
 from smac_hard_gym.engine import CMD_ATTACK
 
@@ -31,16 +33,18 @@ def _death_loop(engine, slot: int, max_loops: int = 2000) -> int:
 
 
 def test_marine_duel_is_a_simultaneous_draw():
-    # 45 HP / 6 damage, no armour: 8 shots each; both fire first at loop 0 and die in the same loop.
+    # 45 HP / 6 damage, no armour: 8 shots each; both start attacking in loop 0, fire first in loop 1 and die in the
+    # same loop.
     engine = engine_with(["Marine_RL"], ["Marine"], {0: (10.0, 16.0), 1: (14.0, 16.0)})
     _attack(engine, 0, 1)  # red is passive and must be ordered; blue acquires it (within 5.5 edge-to-edge)
     health = []
-    for _ in range(shot_loop(7, MARINE_PERIOD) + 1):
+    wind_up = WIND_UP["Marine"]
+    for _ in range(shot_loop(7, MARINE_PERIOD, wind_up) + 1):
         engine.step(n_loops=1)
         engine.commands.clear()
         health.append(engine.state.health[0].copy())
-    shots = [shot_loop(n, MARINE_PERIOD) for n in range(8)]
-    assert shots[-1] == 97
+    shots = [shot_loop(n, MARINE_PERIOD, wind_up) for n in range(8)]
+    assert shots[-1] == 98
     for loop, hp in enumerate(health):
         fired = sum(1 for s in shots if s <= loop)
         expected = max(45.0 - 6.0 * fired, 0.0)
@@ -50,18 +54,19 @@ def test_marine_duel_is_a_simultaneous_draw():
 
 def test_stalker_kills_zealot_in_13_shots():
     # 13 damage (no bonus: zealot is light): shields 50 -> 37, 24, 11; 4th shot: 11 absorbed, 2 - 1 armour = 1 HP;
-    # then 12 per shot: 99 HP needs 9 more. 13 shots, the last fired at ceil(12 * 29.92) = 360. Each is a missile
-    # at 18.75 per second (1.171875 a loop) over 5 centre to centre: it lands ceil(4.27) = 5 loops after it is fired.
+    # then 12 per shot: 99 HP needs 9 more. 13 shots, the last fired at 3 + ceil(12 * 29.92) = 363 (3 loops of
+    # wind-up). Each is a missile at 18.75 per second (1.171875 a loop) over 5 centre to centre: it lands
+    # ceil(4.27) = 5 loops after it is fired.
     engine = engine_with(["Zealot_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
-    engine.step(n_loops=5)
-    assert engine.state.shield[0, 0] == pytest.approx(50.0)  # fired in loop 0, still in flight
+    engine.step(n_loops=8)
+    assert engine.state.shield[0, 0] == pytest.approx(50.0)  # fired in loop 3, still in flight
     engine.step(n_loops=1)
     assert engine.state.shield[0, 0] == pytest.approx(37.0)
     assert engine.state.health[0, 0] == pytest.approx(100.0)
     engine.reset()
     for slot, pos in {0: (10.0, 16.0), 1: (15.0, 16.0)}.items():
         engine.place(0, slot, x=pos[0], y=pos[1])
-    assert _death_loop(engine, 0) == shot_loop(12, STALKER_PERIOD) + 5 == 365
+    assert _death_loop(engine, 0) == shot_loop(12, STALKER_PERIOD, WIND_UP["Stalker"]) + 5 == 368
 
 
 def test_zealot_two_hits_against_stalker_shields_and_armour():
@@ -108,7 +113,7 @@ def test_marauder_bonus_against_armoured(victim, first_hit, shots_to_kill):
 def test_colossus_line_splash_hits_a_marine_line():
     # Line 2.8 long, 0.3 wide, centred on the target, across the shot. Marines (r 0.375) on the line at offsets
     # 0, +-0.8, +-1.6 touch it (1.6 <= 1.4 + 0.375); at +-2.4 they do not; one 0.8 behind the target does not
-    # (0.8 > 0.15 + 0.375). Each touched marine takes 2 x (10 + 5 light) = 30.
+    # (0.8 > 0.15 + 0.375). Each touched marine takes 2 x (10 + 5 light) = 30, after the 2-loop wind-up.
     offsets = [0.0, 0.8, -0.8, 1.6, -1.6, 2.4, -2.4]
     red = ["Marine_RL"] * (len(offsets) + 1)
     positions = {k: (16.0, 16.0 + dy) for k, dy in enumerate(offsets)}
@@ -116,6 +121,8 @@ def test_colossus_line_splash_hits_a_marine_line():
     positions[len(red)] = (10.0, 16.0)  # the colossus, 6 to the west: in range 7 (+ radii)
     engine = engine_with(red, ["Colossus"], positions)
     _attack(engine, len(red), 0)
+    engine.step(n_loops=WIND_UP["Colossus"])
+    assert (engine.state.health[0, : len(red)] == 45.0).all()
     engine.step(n_loops=1)
     hp = engine.state.health[0]
     expected = [15.0, 15.0, 15.0, 15.0, 15.0, 45.0, 45.0, 45.0]
@@ -190,13 +197,13 @@ def test_medivac_stops_when_out_of_energy():
 
 
 def test_shields_regenerate_after_ten_seconds_without_damage():
-    # One marine shot (6) on a stalker's shield, then the marine is removed. Shields wait 160 loops (10 Normal
-    # seconds), then regenerate 2 per second = 0.125 per loop.
+    # One marine shot (6, in loop 1 after the wind-up) on a stalker's shield, then the marine is removed. Shields
+    # wait 160 loops (10 Normal seconds), then regenerate 2 per second = 0.125 per loop.
     engine = engine_with(["Stalker_RL"], ["Marine"], {0: (10.0, 16.0), 1: (14.0, 16.0)})
-    engine.step(n_loops=1)
+    engine.step(n_loops=2)
     assert engine.state.shield[0, 0] == pytest.approx(74.0)
     engine.place(0, 1, alive=False, health=0.0)
-    engine.step(n_loops=159)  # 160 loops since the hit (it landed in loop 0)
+    engine.step(n_loops=159)  # 160 loops since the hit (it landed in loop 1)
     assert engine.state.shield[0, 0] == pytest.approx(74.0)
     engine.step(n_loops=8)
     assert engine.state.shield[0, 0] == pytest.approx(74.0 + 8 * 0.125)

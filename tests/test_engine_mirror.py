@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from engine_helpers import battle_rows_of, engine_with, on_grid
+from engine_helpers import WIND_UP, battle_rows_of, engine_with, on_grid
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, BattleEngine, Commands
 from smac_hard_gym.engine.kernels import _separation
@@ -103,24 +103,32 @@ def test_separation_pushes_do_not_depend_on_slot_order():
     assert results[0][0][0] == on_grid(10.0 - 0.075) == 40653 / 4096
 
 
+HEAL = 0.5625  # a medivac's heal per game loop: 12.6 HP per Faster second = 9 per Normal second, / 16
+
+
 def _medivac_save(marine_health: float) -> tuple[bool, float]:
     # Red marine (slot 0) shoots a damaged blue marine (slot 2) that a blue medivac (slot 1) is healing. Blue's
     # medivac has a higher slot than the red shooter, so a heal applied in slot order would land after the shot.
+    # The marine's attack starts in loop 0 and shoots WIND_UP = 1 loop later: the run ends with the loop of the
+    # shot, and the target has had one heal per loop of the wind-up before it.
     engine = engine_with(["Marine_RL"], ["Medivac", "Marine"],
                          {0: (12.0, 16.0), 1: (16.0, 16.5), 2: (16.0, 16.0)})
     engine.place(0, 2, health=marine_health)
     engine.commands.kind[0, 0] = CMD_ATTACK
     engine.commands.target[0, 0] = 2
-    engine.step(n_loops=1)
+    engine.step(n_loops=WIND_UP["Marine"] + 1)
     return bool(engine.state.alive[0, 2]), float(engine.state.health[0, 2])
 
 
 def test_a_heal_does_not_save_a_unit_killed_in_the_same_loop():
-    # 5.8 - 6 (one marine shot) = -0.2: dead, although the heal of that loop (0.5625) would bring it back above 0.
-    alive, health = _medivac_save(5.8)
+    # 5.2 + 0.5625 (the wind-up loop's heal) - 6 (one marine shot) = -0.2375: dead, although the heal of that loop
+    # (0.5625) would bring it back above 0. (5.2, not the 5.8 of before the wind-up: 5.8 + 0.5625 survives the shot.)
+    assert 5.2 + WIND_UP["Marine"] * HEAL - 6.0 < 0.0 < 5.2 + (WIND_UP["Marine"] + 1) * HEAL - 6.0
+    alive, health = _medivac_save(5.2)
     assert not alive and health == 0.0
 
 
 def test_a_unit_that_survives_the_shot_is_healed_in_the_same_loop():
+    # 10 + 0.5625 (the wind-up loop's heal) - 6 + 0.5625 (the shot's loop) = 5.125.
     alive, health = _medivac_save(10.0)
-    assert alive and health == pytest.approx(10.0 - 6.0 + 0.5625)
+    assert alive and health == pytest.approx(10.0 + WIND_UP["Marine"] * HEAL - 6.0 + HEAL)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from engine_helpers import engine_with, on_grid
 
-from smac_hard_gym.engine import CMD_ATTACK, CMD_HOLD, CMD_MOVE
+from smac_hard_gym.engine import CMD_ATTACK, CMD_HOLD, CMD_MOVE, CMD_STOP
 from smac_hard_gym.engine.kernels import POSITION_GRID
 
 STEP = 0.140625
@@ -176,38 +176,94 @@ def test_two_walkers_going_round_a_wall_the_opposite_ways_pass_instead_of_standi
     assert np.hypot(st.x[0, 4] - 13.0, st.y[0, 4] - 14.0) <= 0.05
 
 
+# --- The wind-up (section 2, C5): a weapon fires its data's DamagePoint after the attack starts, in whole loops
+# (stalker 0.167 s = 2.67 loops: 3). A changed order during the wind-up cancels the shot and spends no cooldown
+# (Liquipedia, Stutter Step: a move given once the shot is out keeps its damage); a repeated order changes nothing.
+
+
+def _stalker_on_a_marine():
+    """A passive stalker 5 from a marine (in range 6 + radii), ordered onto it."""
+    engine = engine_with(["Stalker_RL"], ["Marine_RL"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
+    _order(engine, 0, CMD_ATTACK, target=1)
+    return engine
+
+
+def test_a_changed_order_in_the_wind_up_cancels_the_shot_at_no_cost():
+    engine = _stalker_on_a_marine()
+    _run(engine, 2)  # two of the three wind-up loops
+    assert engine.state.pending_target[0, 0] == -1 and engine.state.cooldown[0, 0] == 0.0
+    _order(engine, 0, CMD_STOP)  # the passive stalker then stands idle
+    _run(engine, 6)
+    assert engine.state.pending_target[0, 0] == -1 and engine.state.cooldown[0, 0] == 0.0
+    assert engine.state.health[0, 1] == 45.0
+    _order(engine, 0, CMD_ATTACK, target=1)  # a new attack winds up from the start: 3 loops, not the 1 left
+    _run(engine, 3)
+    assert engine.state.pending_target[0, 0] == -1
+    _run(engine, 1)
+    assert engine.state.pending_target[0, 0] == 1 and engine.state.cooldown[0, 0] == pytest.approx(29.92)
+
+
+def test_a_repeated_order_keeps_the_wind_up():
+    # SMAC's controllers send their order every step: the same attack, sent in each of loops 0 to 3, fires in loop 3.
+    engine = _stalker_on_a_marine()
+    for loop in range(4):
+        assert engine.state.pending_target[0, 0] == -1, loop
+        _order(engine, 0, CMD_ATTACK, target=1)
+        _run(engine, 1)
+    assert engine.state.pending_target[0, 0] == 1
+
+
+def test_a_move_after_the_shot_keeps_its_damage():
+    # Stutter step: the stalker fires in loop 3 and is sent walking in loop 4; its missile still lands in loop 8
+    # (5 centre to centre at 1.171875 a loop: 5 loops).
+    engine = _stalker_on_a_marine()
+    _run(engine, 4)
+    _order(engine, 0, CMD_MOVE, point=(4.0, 16.0))
+    _run(engine, 4)
+    assert engine.state.health[0, 1] == 45.0
+    _run(engine, 1)
+    assert engine.state.health[0, 1] == pytest.approx(45.0 - 13.0)
+    assert engine.state.x[0, 0] < 10.0
+
+
 # --- Missiles (section 2): the stalker's, hydralisk's and marauder's shots fly; they home, never miss, and land
 # even if the shooter has died.
 
 
 def test_a_hydralisk_spine_lands_after_its_flight():
-    # Hydralisk (r 0.625) 4 from a zealot (r 0.5) on hold: in range 5 + radii, fires in loop 0. 40 per second =
-    # 2.5 a loop: ceil(4 / 2.5) = 2 loops, so the 12 damage lands in loop 2 (on the shield).
+    # Hydralisk (r 0.625) 4 from a zealot (r 0.5) on hold: in range 5 + radii, it starts its attack in loop 0 and
+    # fires in loop 3 (wind-up 0.14 s = 2.24 loops, rounded up). 40 per second = 2.5 a loop: ceil(4 / 2.5) = 2
+    # loops, so the 12 damage lands in loop 5 (on the shield).
     engine = engine_with(["Hydralisk_RL"], ["Zealot"], {0: (10.0, 16.0), 1: (14.0, 16.0)})
     _order(engine, 1, CMD_HOLD)
     _order(engine, 0, CMD_ATTACK, target=1)
     shields = []
-    for _ in range(4):
+    for _ in range(7):
         _run(engine, 1)
         shields.append(float(engine.state.shield[0, 1]))
-    assert shields == [50.0, 50.0, 38.0, 38.0]
+    assert shields == [50.0] * 5 + [38.0, 38.0]
 
 
 def test_a_missile_lands_after_its_shooter_died():
-    # A stalker fires at a marine 5 away in loop 0 (flight ceil(5 / 1.171875) = 5 loops) and is killed in loop 1.
+    # A stalker fires at a marine 5 away in loop 3, after its 3-loop wind-up (flight ceil(5 / 1.171875) = 5 loops,
+    # landing in loop 8), and is killed right after.
     engine = engine_with(["Marine_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (15.0, 16.0)})
-    _run(engine, 1)
+    _run(engine, 4)
     engine.place(0, 1, alive=False, health=0.0)
-    _run(engine, 3)
+    _run(engine, 4)
     assert engine.state.health[0, 0] == 45.0
-    _run(engine, 2)
+    _run(engine, 1)
     assert engine.state.health[0, 0] == pytest.approx(45.0 - 13.0)
 
 
 def test_a_missile_at_a_unit_that_died_in_flight_hits_nobody():
+    # The stalker fires at marine 0 in loop 3 (wind-up), its missile due in loop 8; marine 0 dies in flight. The
+    # stalker turns on marine 1 (6.4 away) from loop 4 and fires in loop 7, a 6-loop flight: nothing lands on
+    # marine 1 by loop 11.
     engine = engine_with(["Marine_RL", "Marine_RL"], ["Stalker"], {0: (10.0, 16.0), 1: (10.0, 12.0), 2: (15.0, 16.0)})
     _order(engine, 2, CMD_ATTACK, target=0)
-    _run(engine, 1)
+    _run(engine, 4)
+    assert engine.state.pending_target[0, 2] == 0
     engine.place(0, 0, alive=False, health=0.0)
     _run(engine, 8)
     assert engine.state.health[0, 1] == 45.0 and engine.state.health[0, 0] == 0.0

@@ -6,13 +6,14 @@ a hit from beyond that range, and holding units only shoot what is in weapon ran
 from __future__ import annotations
 
 import pytest
-from engine_helpers import engine_with
+from engine_helpers import WIND_UP, engine_with, shot_loop
 
 from smac_hard_gym.engine import CMD_ATTACK, CMD_ATTACK_MOVE, CMD_HOLD, CMD_MOVE
 from smac_hard_gym.engine.kernels import POSITION_GRID
 from smac_hard_gym.engine.state import ORDER_IDLE
 
 R = 0.375  # marine radius
+STALKER_PERIOD = 1.87 * 16  # game loops between a stalker's shots
 
 
 def test_idle_unit_acquires_the_closest_enemy_in_scan_range():
@@ -56,12 +57,13 @@ def test_a_unit_prefers_the_enemy_attacking_it():
 def test_response_to_a_hit_from_beyond_scan_range():
     # A stalker (range 6, + radii) shoots a blue zergling 6.8 away (edge to edge), beyond its scan range (5): it
     # runs at it. The stalker walks 0.8 at 2.9531 / 16 a loop, reaching range in loop 4 (centre distance 6.877),
-    # and fires; the missile flies ceil(6.877 / 1.171875) = 6 loops and lands in loop 10; the zergling answers in 11.
+    # where its attack starts; it fires WIND_UP = 3 loops later, in loop 7; the missile flies
+    # ceil(6.877 / 1.171875) = 6 loops and lands in loop 4 + 3 + 6 = 13; the zergling answers in 14.
     engine = engine_with(["Stalker_RL"], ["Zergling"], {0: (10.0, 16.0), 1: (10.0 + 6.8 + 0.625 + 0.375, 16.0)})
     engine.commands.kind[0, 0] = CMD_ATTACK
     engine.commands.target[0, 0] = 1
     x0 = engine.state.x[0, 1]
-    engine.step(n_loops=10)
+    engine.step(n_loops=4 + shot_loop(0, STALKER_PERIOD, WIND_UP["Stalker"]) + 6)  # loops 0-12
     assert engine.state.health[0, 1] == 35.0
     engine.step(n_loops=1)
     # It has not moved: the same point on SC2's position grid (1/4096, kernels.POSITION_GRID).
@@ -126,12 +128,15 @@ def test_a_chased_target_that_also_attacks_keeps_the_chase_against_a_farther_sho
 def test_an_attack_moving_unit_does_not_turn_on_a_shooter_beyond_its_scan_range():
     # SC2's Response belongs to idle units: a zergling carrying out an attack-move keeps walking to its point when a
     # stalker shoots it from 5.8 edge to edge (inside the stalker's range 6, beyond the zergling's scan range 5).
+    # The attack starts in loop 0 and shoots in loop 3 (WIND_UP), the zergling 4 x 0.185 north by then: centre
+    # distance hypot(6.8, 0.738) = 6.840 < 7 (still in reach), a flight of ceil(6.840 / 1.171875) = 6 loops, the hit
+    # in loop 9; loop 10 is the zergling's first look after it.
     engine = engine_with(["Stalker_RL"], ["Zergling"], {0: (10.0, 10.0), 1: (10.0 + 5.8 + 0.625 + 0.375, 10.0)})
     engine.commands.kind[0, 0] = CMD_ATTACK
     engine.commands.target[0, 0] = 1
     engine.commands.kind[0, 1] = CMD_ATTACK_MOVE
     engine.commands.x[0, 1], engine.commands.y[0, 1] = 16.8, 30.0
-    engine.step()
+    engine.step(n_loops=shot_loop(0, STALKER_PERIOD, WIND_UP["Stalker"]) + 6 + 2)  # loops 0-10
     assert engine.state.health[0, 1] < 35.0  # it was hit
     assert engine.state.target[0, 1] == -1  # and does not answer
     assert engine.state.x[0, 1] == pytest.approx(16.8, abs=0.5 / POSITION_GRID)  # walking on to its point
@@ -210,11 +215,12 @@ def test_passive_learner_units_ignore_attackers_even_while_attack_moving_past_a_
 # docs/engine_rules.md C13).
 # A red stalker (passive, so it answers nothing itself) is ordered onto blue zealot A, which holds position 6.8
 # beyond the stalker's edge (outside A's scan range, 5). The stalker walks 2.9531 / 16 = 0.1846 a loop from 7.925
-# (centre to centre) until within 6 + 0.625 + 0.5 = 7.125: 7.002 after the 5th loop after the order, when it fires;
-# the missile flies ceil(7.002 / 1.171875) = 6 loops and lands in the 11th; the stalker fires again every
-# ceil(1.87 * 16) = 30 loops: hits land in loops 11, 41, 71.
+# (centre to centre) until within 6 + 0.625 + 0.5 = 7.125: 7.002 in the 5th loop after the order, when its attack
+# starts; it shoots WIND_UP = 3 loops later and then every 1.87 x 16 = 29.92 loops (shot_loop: 3, 33, 63), each
+# missile flying ceil(7.002 / 1.171875) = 6 loops: hits land in loops 5 + 3 + 6 = 14, 5 + 33 + 6 = 44, 5 + 63 + 6 = 74.
 # The helpers are zerglings (radius 0.375), idle and beyond the stalker's reach and scan range (edge >= 7.9).
 _A = (10.0 + 6.8 + 0.625 + 0.5, 16.0)
+_HITS = tuple(5 + shot_loop(n, STALKER_PERIOD, WIND_UP["Stalker"]) + 6 for n in range(3))  # loops after the order
 
 
 def _stalker_on_held_zealot(helpers: dict[int, tuple[float, float]]):
@@ -235,9 +241,9 @@ def test_a_hit_unit_calls_idle_allies_within_four_of_it():
     # B 2.0 behind A; D 4.3 to A's side (edge 3.925: inside 4); C 4.5 to the other side (edge 4.125: outside).
     b, c, d = (_A[0] + 2.0, 16.0), (_A[0], 16.0 + 4.5), (_A[0], 16.0 - 4.3)
     engine = _stalker_on_held_zealot({2: b, 3: c, 4: d})
-    engine.step(n_loops=10)
+    engine.step(n_loops=_HITS[0] - 1)
     assert _life(engine, 1) == 150.0 and engine.state.attacker[0, 2] == -1
-    engine.step(n_loops=1)  # loop 11: the hit, and the call
+    engine.step(n_loops=1)  # loop 14: the hit, and the call
     assert _life(engine, 1) == 150.0 - 13.0
     assert engine.state.attacker[0, 2] == 0 and engine.state.attacker[0, 4] == 0
     assert engine.state.attacker[0, 3] == -1
@@ -249,29 +255,31 @@ def test_a_hit_unit_calls_idle_allies_within_four_of_it():
 
 
 def test_a_call_is_not_answered_by_units_with_an_order():
-    # B (2.0 behind A) holds position, E (2.0 above A) walks away north: neither turns on the stalker.
-    b, e = (_A[0] + 2.0, 16.0), (_A[0], 18.0)
+    # B (2.0 behind A) holds position, E (1.0 above A) walks away north: neither turns on the stalker. At the hit
+    # (loop 14) E is 1.0 + 14 x 0.185 = 3.58 above A, within the call's 4 + 0.375 (centre to centre); from 2.0 above,
+    # as before the wind-up delayed the hit, it would be 4.58 away: out of the call, and the test would prove nothing.
+    b, e = (_A[0] + 2.0, 16.0), (_A[0], 17.0)
     engine = _stalker_on_held_zealot({2: b, 3: e})
     engine.commands.kind[0, 2] = CMD_HOLD
     engine.commands.kind[0, 3] = CMD_MOVE
     engine.commands.x[0, 3], engine.commands.y[0, 3] = _A[0], 31.0
-    engine.step(n_loops=13)
+    engine.step(n_loops=_HITS[0] + 2)
     assert _life(engine, 1) == 150.0 - 13.0
     assert engine.state.target[0, 2] == -1 and engine.state.x[0, 2] == b[0]
     assert engine.state.target[0, 3] == -1 and engine.state.y[0, 3] > e[1]
 
 
 def test_a_unit_calls_at_most_once_every_two_seconds():
-    # F is parked far away through the first call (loop 11), then put 2.0 above A: the hit of loop 41 comes 30 loops
-    # after the call (< 32: no call); the hit of loop 71, 60 loops after it, calls again and F answers.
+    # F is parked far away through the first call (loop 14), then put 2.0 above A: the hit of loop 44 comes 30 loops
+    # after the call (< 32: no call); the hit of loop 74, 60 loops after it, calls again and F answers.
     engine = _stalker_on_held_zealot({2: (28.0, 28.0)})
-    engine.step(n_loops=11)
+    engine.step(n_loops=_HITS[0])
     assert _life(engine, 1) == 150.0 - 13.0
     engine.place(0, 2, x=_A[0], y=18.0)
-    engine.step(n_loops=30)  # loops 12-41
+    engine.step(n_loops=_HITS[1] - _HITS[0])  # loops 15-44
     assert _life(engine, 1) == 150.0 - 26.0
     assert engine.state.attacker[0, 2] == -1
-    engine.step(n_loops=30)  # loops 42-71
+    engine.step(n_loops=_HITS[2] - _HITS[1])  # loops 45-74
     assert _life(engine, 1) == 150.0 - 39.0
     assert engine.state.attacker[0, 2] == 0
 
@@ -283,11 +291,11 @@ def test_an_attack_moving_ally_acquires_the_attacker_within_its_leash():
     # next look, walking on east.
     g, h = (_A[0] + 1.5, 16.0), (_A[0] + 3.575, 16.0)
     engine = _stalker_on_held_zealot({2: g, 3: h})
-    engine.step(n_loops=10)
+    engine.step(n_loops=_HITS[0] - 1)
     for slot in (2, 3):
         engine.commands.kind[0, slot] = CMD_ATTACK_MOVE
         engine.commands.x[0, slot], engine.commands.y[0, slot] = 31.0, 16.0
-    engine.step(n_loops=1)  # loop 11: both step east, then the hit and the call
+    engine.step(n_loops=1)  # loop 14: both step east, then the hit and the call
     engine.commands.clear()
     assert _life(engine, 1) == 150.0 - 13.0
     assert engine.state.target[0, 2] == 0 and engine.state.target[0, 3] == 0

@@ -63,3 +63,5 @@ def reset_battles(st, battles, layout):
             st.pending_target[b, i] = NO_UNIT
             st.pending_eta[b, i] = 0
             st.pending_hits[b, i] = 0
+            st.windup[b, i] = 0
+            st.windup_target[b, i] = NO_UNIT

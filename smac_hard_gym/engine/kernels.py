@@ -17,9 +17,9 @@ whole: the state (``BattleState``), the commands (``Commands``), the map's ``Ter
    kill each other in the same loop (SC2 resolves in sequence; simultaneity keeps the batch order-free);
 6. ``_deaths``.
 
-Simplifications against SC2 (listed in the README): damage lands when the weapon fires, or a missile's flight
-later (no damage point), separation is a positional push, and a walker blocked by a unit that does not give way
-steers round it by a few fixed headings (SC2's steering is not published). The only random draw is SC2's
+Simplifications against SC2 (listed in the README): a shot comes a whole number of loops after its wind-up starts
+(the data's damage point, rounded up), separation is a positional push, and a walker blocked by a unit that does not
+give way steers round it by a few fixed headings (SC2's steering is not published). The only random draw is SC2's
 random attack delay, from each battle's seeded xorshift stream (``BattleState.rng``).
 
 Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechanisms' own tests):
@@ -109,6 +109,7 @@ _ENERGY_MAX, _ENERGY_REGEN = S["energy_max"], S["energy_regen"]
 _HEAL_RATE, _HEAL_COST, _REGEN, _DECAY = S["heal_rate"], S["heal_energy_per_hp"], S["regen"], S["decay"]
 _PASSIVE, _SCAN, _SHIELD_REGEN = S["passive"], S["scan_range"], S["shield_regen"]
 _MISSILE_SPEED, _SECOND_DELAY, _SECOND_REACH = S["missile_speed"], S["second_hit_delay"], S["second_hit_reach"]
+_WIND_UP = S["wind_up"]
 
 _SHIELD_DELAY = SHIELD_REGEN_DELAY_LOOPS
 _MIN_DAMAGE = MIN_DAMAGE
@@ -171,6 +172,8 @@ class Rows(NamedTuple):
     pending_target: np.ndarray
     pending_eta: np.ndarray
     pending_hits: np.ndarray
+    windup: np.ndarray
+    windup_target: np.ndarray
     loop: np.ndarray
     rng: np.ndarray
     by_x: np.ndarray
@@ -187,9 +190,9 @@ def battle_rows(st, scratch, b):
     return Rows(st.side[b], st.alive[b], st.alive_at_loop[b], st.x[b], st.y[b], st.health[b], st.shield[b],
                 st.energy[b], st.cooldown[b], st.shield_wait[b], st.order[b], st.order_target[b], st.order_x[b],
                 st.order_y[b], st.target[b], st.attacker[b], st.help_at[b], st.fired_at[b], st.burst[b],
-                st.stance[b], st.pending_target[b], st.pending_eta[b], st.pending_hits[b], st.loop[b:b + 1],
-                st.rng[b:b + 1], scratch.by_x[b], scratch.key[b], scratch.engaged[b], scratch.x0[b], scratch.y0[b],
-                scratch.life0[b])
+                st.stance[b], st.pending_target[b], st.pending_eta[b], st.pending_hits[b], st.windup[b],
+                st.windup_target[b], st.loop[b:b + 1], st.rng[b:b + 1], scratch.by_x[b], scratch.key[b],
+                scratch.engaged[b], scratch.x0[b], scratch.y0[b], scratch.life0[b])
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -223,11 +226,31 @@ def _within(xi, yi, xj, yj, limit):
 # Commands.
 
 
+@helper
+def _repeats_order(k, j, px, py, order, order_target, order_x, order_y):
+    """Command ``k`` (target ``j``, point ``px, py``) asks for the order the unit already carries out."""
+    if k == CMD_STOP:
+        return order == ORDER_IDLE
+    if k == CMD_HOLD:
+        return order == ORDER_HOLD
+    if k == CMD_ATTACK:
+        return order == ORDER_ATTACK and order_target == j
+    if k == CMD_HEAL:
+        return order == ORDER_HEAL and order_target == j
+    same_point = order_x == px and order_y == py
+    if k == CMD_MOVE:
+        return order == ORDER_MOVE and same_point
+    return order == ORDER_ATTACK_MOVE and same_point
+
+
 @inline
 def _apply_commands(n, r, cmd, b, slot_stats):
-    """Battle b's commands (``cmd``, a :class:`~smac_hard_gym.engine.state.Commands`) become its units' orders."""
+    """Battle b's commands (``cmd``, a :class:`~smac_hard_gym.engine.state.Commands`) become its units' orders.
+
+    A command that changes a unit's order cancels its attack wind-up (no shot, no cooldown spent); one that repeats
+    the order (SMAC's controllers re-send theirs every step) leaves it (docs/engine_rules.md, C5)."""
     side, alive, order, order_target, order_x, order_y = r.side, r.alive, r.order, r.order_target, r.order_x, r.order_y
-    target, fired_at, burst = r.target, r.fired_at, r.burst
+    target, fired_at, burst, windup_target = r.target, r.fired_at, r.burst, r.windup_target
     kind, cmd_target, cmd_x, cmd_y = cmd.kind[b], cmd.target[b], cmd.x[b], cmd.y[b]
     for i in range(n):
         fired_at[i] = NO_UNIT
@@ -235,6 +258,9 @@ def _apply_commands(n, r, cmd, b, slot_stats):
         k = kind[i]
         if k == CMD_NOOP or not alive[i]:
             continue
+        if not _repeats_order(k, cmd_target[i], cmd_x[i], cmd_y[i], order[i], order_target[i], order_x[i],
+                              order_y[i]):
+            windup_target[i] = NO_UNIT
         if k == CMD_STOP:
             order[i] = ORDER_IDLE
             target[i] = NO_UNIT
@@ -1123,18 +1149,25 @@ def _calls_for_help(n, r, slot_stats, now):
 
 @inline
 def _attacks(n, r, slot_stats, jitter_lo, jitter_hi, now):
-    """Every unit alive when the loop began and in reach of its target acts: delayed hits land, weapons off
-    cooldown fire (each shot's cooldown gets a uniform random delay in [``jitter_lo``, ``jitter_hi``) loops), banelings
-    burst, then medivacs heal."""
+    """Every unit alive when the loop began and in reach of its target acts: delayed hits land, weapons fire once
+    their wind-up is over and they are off cooldown (each shot's cooldown gets a uniform random delay in
+    [``jitter_lo``, ``jitter_hi``) loops), banelings burst, then medivacs heal.
+
+    The wind-up (SC2's DamagePoint, docs/engine_rules.md C5) lasts ``wind_up`` loops. It starts once the
+    target is in reach and the cooldown has at most that many loops left, so in steady fire it overlaps the end of
+    the cooldown and the period stays the weapon's. The target changing, dying or leaving reach cancels it (so does
+    a new order, ``_apply_commands``) without spending the cooldown."""
     side, alive0, x, y, health, shield = r.side, r.alive_at_loop, r.x, r.y, r.health, r.shield
     energy, cooldown, shield_wait, target, attacker = r.energy, r.cooldown, r.shield_wait, r.target, r.attacker
-    fired_at, burst, rng = r.fired_at, r.burst, r.rng
+    fired_at, burst, rng, windup, windup_target = r.fired_at, r.burst, r.rng, r.windup, r.windup_target
     pending_target, pending_eta, pending_hits = r.pending_target, r.pending_eta, r.pending_hits
     hit = _land_pending(n, alive0, x, y, health, shield, shield_wait, attacker, pending_target, pending_eta,
                         pending_hits, slot_stats)
     heals = False
     for i in range(n):
         j = _target_in_reach(i, alive0, x, y, target, slot_stats)
+        if windup_target[i] != j:
+            windup_target[i] = NO_UNIT
         if j < 0:
             continue
         weapon = slot_stats[i, _WEAPON]
@@ -1143,7 +1176,16 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi, now):
         elif weapon == WEAPON_BURST:
             _burst(n, i, side, alive0, x, y, health, shield, shield_wait, attacker, burst, slot_stats)
             hit = True
-        elif cooldown[i] <= 0.0:
+        else:
+            if windup_target[i] < 0:  # the attack starts (the cooldown has at most the wind-up left)
+                if cooldown[i] > slot_stats[i, _WIND_UP]:
+                    continue  # reloading: too early to start an attack
+                windup_target[i] = j
+                windup[i] = int(slot_stats[i, _WIND_UP])
+            if windup[i] > 0:
+                windup[i] -= 1
+                continue
+            windup_target[i] = NO_UNIT  # the shot; the cooldown has run out (it was at most the wind-up)
             hit = True
             if weapon == _LINE:
                 _line_splash(n, i, j, side, alive0, x, y, health, shield, shield_wait, attacker, slot_stats)

@@ -61,6 +61,8 @@ class BattleState(NamedTuple):
     pending_target: np.ndarray  # int32: unit a delayed hit will land on (missile in flight, zealot's second blade)
     pending_eta: np.ndarray  # int32: game loops until that hit lands
     pending_hits: np.ndarray  # int8: how many of the weapon's hits land then
+    windup: np.ndarray  # int32: game loops left of the attack's wind-up (SC2's damage point) before the shot
+    windup_target: np.ndarray  # int32: unit the weapon is winding up against, NO_UNIT when not winding up
     loop: np.ndarray  # int64 (B,): game loops since the battle's reset
     rng: np.ndarray  # uint64 (B,): the battle's random stream (weapon cooldown jitter), seeded at reset
 
@@ -130,13 +132,14 @@ _FIELD_DTYPES = {
     "order_y": np.float64, "target": np.int32, "attacker": np.int32, "help_at": np.int64,
     "fired_at": np.int32, "burst": np.bool_, "alive_at_loop": np.bool_, "stance": np.int8,
     "pending_target": np.int32, "pending_eta": np.int32, "pending_hits": np.int8,
+    "windup": np.int32, "windup_target": np.int32,
 }
 
 
 def allocate_state(batch: int, n_units: int) -> BattleState:
     """Zeroed state for ``batch`` battles of ``n_units`` slots."""
     arrays = {name: np.zeros((batch, n_units), dtype=dt) for name, dt in _FIELD_DTYPES.items()}
-    for name in ("order_target", "target", "attacker", "fired_at", "pending_target"):
+    for name in ("order_target", "target", "attacker", "fired_at", "pending_target", "windup_target"):
         arrays[name][:] = NO_UNIT
     return BattleState(**arrays, loop=np.zeros(batch, dtype=np.int64), rng=np.zeros(batch, dtype=np.uint64))
 

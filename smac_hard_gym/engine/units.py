@@ -24,6 +24,7 @@ attacked) with SMAC's custom values (hydralisk 80 HP, medivac speed 2.75). Oppon
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -93,6 +94,7 @@ class UnitSpec:
     missile_speed: float = 0.0  # the weapon launches a homing missile at this speed per Normal second (0: instant)
     second_hit_delay: float = 0.0  # game loops from the first hit to the last (zealot's second blade; 0: together)
     second_hit_reach: float = 0.0  # ... which lands only within this centre distance of the attacker
+    damage_point: float = 0.0  # game loops from the start of an attack to its shot (the weapon's DamagePoint)
     sources: dict[str, str] = field(default_factory=dict, compare=False)
 
 
@@ -107,9 +109,11 @@ _STANDARD: list[UnitSpec] = [
         bonus_damage=0, bonus_attribute=0, cooldown=0.8608 * LOOPS_PER_SECOND, range=5,
         hits_ground=True, hits_air=True, speed=2.25, radius=0.375, sight=9, attributes=LIGHT | BIO,
         smac_max_cooldown=15,
+        damage_point=0.05 * LOOPS_PER_SECOND,
         sources={"health,armor,damage,range,radius,sight,attributes": "techtree",
                  "cooldown": "techtree 0.8608 Normal s (lqp 0.61 Faster)", "speed": "xml 2.25 (lqp 3.15 Faster)",
-                 "smac_max_cooldown": "smac"},
+                 "smac_max_cooldown": "smac",
+                 "damage_point": "gamedata WeaponData DamagePoint: GuassRifle 0.05 s"},
     ),
     UnitSpec(
         "marauder", "Marauder", "marauder", 51, "T", health=125, shield=0, armor=1, damage=10, hits=1,
@@ -137,9 +141,11 @@ _STANDARD: list[UnitSpec] = [
         bonus_damage=5, bonus_attribute=ARMORED, cooldown=1.87 * LOOPS_PER_SECOND, range=6,
         hits_ground=True, hits_air=True, speed=2.9531, radius=0.625, sight=10, attributes=ARMORED | MECH,
         smac_max_cooldown=35, missile_speed=18.75,
+        damage_point=0.167 * LOOPS_PER_SECOND,
         sources={"health,shield,armor,speed,sight,radius,attributes": "xml", "damage,bonus,range": "techtree",
                  "cooldown": "techtree 1.87 Normal s (lqp 1.34 Faster)", "smac_max_cooldown": "smac",
-                 "missile_speed": "gamedata StalkerWeapon (MissileDefault) MaxSpeed 18.75"},
+                 "missile_speed": "gamedata StalkerWeapon (MissileDefault) MaxSpeed 18.75",
+                 "damage_point": "gamedata WeaponData DamagePoint: ParticleDisruptors: core default 0.167 s"},
     ),
     UnitSpec(
         "zealot", "Zealot", "zealot", 73, "P", health=100, shield=50, armor=1, damage=8, hits=2,
@@ -158,27 +164,33 @@ _STANDARD: list[UnitSpec] = [
         hits_ground=True, hits_air=False, speed=2.25, radius=1.0, sight=10,
         attributes=ARMORED | MECH | MASSIVE, cliff_walk=True, weapon=WEAPON_LINE_SPLASH,
         splash_length=2.8, splash_width=0.3, smac_max_cooldown=24,
+        damage_point=0.0832 * LOOPS_PER_SECOND,
         sources={"health,shield,armor,speed,sight,radius,attributes,cliff_walk": "xml (SC2 4.10 values)",
                  "damage,hits,bonus,range": "techtree", "cooldown": "techtree 1.5 Normal s (lqp 1.07 Faster)",
                  "splash_length,splash_width": "2.8 x 0.3 line centred on the target (smaclite's model)",
-                 "smac_max_cooldown": "smac"},
+                 "smac_max_cooldown": "smac",
+                 "damage_point": "gamedata WeaponData DamagePoint: ThermalLances 0.0832 s"},
     ),
     UnitSpec(
         "hydralisk", "Hydralisk", "hydralisk", 107, "Z", health=90, shield=0, armor=0, damage=12, hits=1,
         bonus_damage=0, bonus_attribute=0, cooldown=0.825 * LOOPS_PER_SECOND, range=5,
         hits_ground=True, hits_air=True, speed=2.25, radius=0.625, sight=9, attributes=LIGHT | BIO,
         regen=ZERG_REGEN_PER_SECOND, smac_max_cooldown=10, missile_speed=40.0,
+        damage_point=0.14 * LOOPS_PER_SECOND,
         sources={"health": "lqp 90 (standard unit)", "damage,range,radius,sight,attributes": "techtree",
                  "cooldown": "techtree 0.825 Normal s (lqp 0.59 Faster)", "speed": "xml 2.25 off creep",
-                 "regen": "xml", "smac_max_cooldown": "smac", "missile_speed": "gamedata NeedleSpinesWeapon Speed 40"},
+                 "regen": "xml", "smac_max_cooldown": "smac", "missile_speed": "gamedata NeedleSpinesWeapon Speed 40",
+                 "damage_point": "gamedata WeaponData DamagePoint: NeedleSpines 0.14 s (voidmulti)"},
     ),
     UnitSpec(
         "zergling", "Zergling", "zergling", 105, "Z", health=35, shield=0, armor=0, damage=5, hits=1,
         bonus_damage=0, bonus_attribute=0, cooldown=0.696 * LOOPS_PER_SECOND, range=0.1,
         hits_ground=True, hits_air=False, speed=2.9531, radius=0.375, sight=8, attributes=LIGHT | BIO,
         regen=ZERG_REGEN_PER_SECOND, smac_max_cooldown=11,
+        damage_point=0.167 * LOOPS_PER_SECOND,
         sources={"health,speed,sight,radius,attributes,regen": "xml", "damage,range": "techtree",
-                 "cooldown": "techtree 0.696 Normal s (lqp 0.497 Faster)", "smac_max_cooldown": "smac"},
+                 "cooldown": "techtree 0.696 Normal s (lqp 0.497 Faster)", "smac_max_cooldown": "smac",
+                 "damage_point": "gamedata WeaponData DamagePoint: Claws: core default 0.167 s"},
     ),
     UnitSpec(
         "baneling", "Baneling", "baneling", 9, "Z", health=30, shield=0, armor=0, damage=16, hits=1,
@@ -195,12 +207,14 @@ _STANDARD: list[UnitSpec] = [
         hits_ground=True, hits_air=False, speed=0.0, radius=1.125, sight=11,
         attributes=ARMORED | BIO | STRUCTURE, regen=ZERG_REGEN_PER_SECOND, decay=OFF_CREEP_DECAY_PER_SECOND,
         smac_max_cooldown=15, missile_speed=31.0,
+        damage_point=0.3332 * LOOPS_PER_SECOND,
         sources={"health,armor,damage,bonus,range,radius,sight,attributes": "techtree / lqp",
                  "cooldown": "techtree 1.85 Normal s (lqp 1.32 Faster)", "speed": "rooted structure",
                  "regen": "zerg regeneration (xml rate)",
                  "decay": "gamedata ZergBuildingNotOnCreep: 1 HP per 0.3332 s off creep (no creep on SMAC's maps)",
                  "missile_speed": "gamedata ImpalerTentacleLM, mover SpineCrawlerTentacleExtendLong: speed 12 rising "
-                                  "at 140/s^2 (max 200) covers 8.5 in 0.27 s; taken as a constant 31"},
+                                  "at 140/s^2 (max 200) covers 8.5 in 0.27 s; taken as a constant 31",
+                 "damage_point": "gamedata WeaponData DamagePoint: ImpalerTentacle 0.3332 s"},
     ),
 ]
 
@@ -258,7 +272,7 @@ STAT_COLUMNS = (
     "hits_ground", "hits_air", "speed", "radius", "sight", "attributes", "is_air", "cliff_walk", "weapon",
     "splash_radius", "splash_length", "splash_width", "energy_start", "energy_max", "energy_regen", "heal_rate",
     "heal_energy_per_hp", "regen", "passive", "scan_range", "shield_regen", "mover", "missile_speed",
-    "second_hit_delay", "second_hit_reach", "decay",
+    "second_hit_delay", "second_hit_reach", "decay", "wind_up",
 )
 S = {name: i for i, name in enumerate(STAT_COLUMNS)}  # column index by name
 
@@ -283,6 +297,8 @@ def build_stats(units: tuple[UnitSpec, ...] = UNITS) -> np.ndarray:
                 value = scan_range(spec)
             elif name == "shield_regen":
                 value = SHIELD_REGEN_PER_SECOND if spec.shield > 0 else 0.0
+            elif name == "wind_up":  # the damage point in whole game loops: a shot lands on a loop
+                value = float(math.ceil(spec.damage_point - 1e-9))
             elif name == "mover":  # movement plane: 0 ground, 1 cliff walker, 2 air (engine.terrain.MOVER_*)
                 value = 2.0 if spec.is_air else (1.0 if spec.cliff_walk else 0.0)
             else:
