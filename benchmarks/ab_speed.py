@@ -127,8 +127,8 @@ def install(rev: str, root: Path) -> Path:
     return target
 
 
-def measure_once(site: Path, cache: Path, what: str, map_name: str, windows: int, steps: int) -> dict:
-    env = {**os.environ, "PYTHONPATH": str(site), "NUMBA_CACHE_DIR": str(cache), "NUMBA_NUM_THREADS": "1"}
+def measure_once(site: Path, cache: Path, what: str, map_name: str, windows: int, steps: int, threads: int = 1) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(site), "NUMBA_CACHE_DIR": str(cache), "NUMBA_NUM_THREADS": str(threads)}
     out = subprocess.run([sys.executable, "-c", CHILD, what, map_name, str(windows), str(steps)], env=env,
                          cwd=tempfile.gettempdir(), capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -145,14 +145,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--windows", type=int, default=60, help="timed windows per measurement (default 60)")
     p.add_argument("--steps", type=int, default=0,
                    help="steps per window (default: 50 for one battle, 10 for 64+, 2 for 1024+)")
+    p.add_argument("--threads", type=int, default=1,
+                   help="numba threads of each measured process (default 1; `bench engine` uses every core)")
     p.add_argument("--json", type=Path, help="write the rounds and the summary here")
     args = p.parse_args(argv)
     measures = args.measure.split(",")
     for what in measures:
         if what != "gym" and not (what.startswith(("vector", "engine")) and what[6:].isdigit() and int(what[6:])):
             p.error(f"--measure: {what!r} is not gym, vector<N> or engine<N> (N a positive int)")
-    if args.rounds < 1 or args.windows < 1 or args.steps < 0:
-        p.error("--rounds and --windows must be >= 1, --steps >= 0")
+    if args.rounds < 1 or args.windows < 1 or args.steps < 0 or args.threads < 1:
+        p.error("--rounds, --windows and --threads must be >= 1, --steps >= 0")
 
     def steps_for(what: str) -> int:
         battles = 1 if what == "gym" else int(what[6:])
@@ -165,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         caches = {tag: root / f"numba-{tag}" for tag in versions}
         for tag in versions:  # compile each version's kernels once, untimed
             for what in measures:
-                measure_once(sites[tag], caches[tag], what, args.map, 1, 1)
+                measure_once(sites[tag], caches[tag], what, args.map, 1, 1, args.threads)
         rounds = []
         for r in range(args.rounds):
             order = ["before", "after"] if r % 2 == 0 else ["after", "before"]
@@ -173,14 +175,14 @@ def main(argv: list[str] | None = None) -> int:
             for what in measures:
                 for tag in order:
                     row[f"{what}/{tag}"] = measure_once(sites[tag], caches[tag], what, args.map, args.windows,
-                                                        steps_for(what))
+                                                        steps_for(what), args.threads)
             load = os.getloadavg()
             rounds.append({"round": r, "order": order, "load_average": load, "results": row})
             print(f"round {r + 1}/{args.rounds} done (load {load[0]:.1f})", file=sys.stderr)
 
     summary = {}
     print(f"{args.map}: steps/s, median over {args.rounds} rounds of each version's best window "
-          f"({args.windows} windows)")
+          f"({args.windows} windows, {args.threads} numba thread(s))")
     print(f"{'measurement':<14}{'before':>12}{'after':>12}{'after/before':>14}")
     for what in measures:
         best = {tag: statistics.median(r["results"][f"{what}/{tag}"]["best"] for r in rounds) for tag in versions}
@@ -191,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
         doc = {"benchmark": "ab_speed", "before": args.before, "after": args.after, "map": args.map,
                "machine": {"cpu": _cpu_name(), "cores": os.cpu_count(), "python": platform.python_version()},
                "command": " ".join([Path(sys.argv[0]).name, *(argv if argv is not None else sys.argv[1:])]),
-               "windows": args.windows, "rounds": rounds, "summary": summary}
+               "windows": args.windows, "threads": args.threads, "rounds": rounds, "summary": summary}
         args.json.write_text(json.dumps(doc, indent=1) + "\n")
         print(f"wrote {args.json}")
     return 0
