@@ -3,7 +3,7 @@
 The README's "What to expect" sentence names the command and the figures it gives (final test win rate, per script
 of the pool, first evaluation at >= 0.8); this test parses them out of README.md, runs the command (seed 0) through
 the CLI in-process and compares, so the doc and the run cannot drift apart. It checks figures, not time: marked slow
-(a 50k-step training run takes minutes), run with ``pytest -m slow tests/test_doc_figures.py``.
+(a 100k-step training run takes minutes), run with ``pytest -m slow tests/test_doc_figures.py``.
 """
 
 import json
@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 README = Path(__file__).resolve().parents[1] / "README.md"
-COMMAND = "smac-hard-gym train --map 3m --opponent default --timesteps 50000"
+COMMAND = "smac-hard-gym train --map 3m --opponent default --timesteps 100000"
 
 
 def readme_figures(text: str) -> dict:
