@@ -33,10 +33,11 @@ clip of 0.15, near MAPPO's per-unit 0.05 over three units (1.05^3 = 1.16), won 0
 (seeds 0-2) where 0.05 won 0.00, 0.09 and 1.00 (the engine with C14); on 3s_vs_4z 0.15 won 1.00 on seeds 0-2 at 1M
 steps where 0.05 won 0.16 (seed 0); on 8m_vs_9m, MAPPO's 15-epoch map with eight units, 0.2 won 1.00, 1.00 and
 0.94 on seeds 0-2 at 1M steps where 0.05 won 0.78 (seed 0). On 3m, the README's quick start, MAPPO's 15 epochs of
-one minibatch at 0.05 learn too slowly for a short run: 50k steps against the ``default`` pool win 0.44 and the
-sampled training battles none by 100k, where 10 epochs of 4 minibatches at 0.2 win 0.63 and 0.47 of them (the
-joint MLP: 0.66 and 0.69), and against SMAC's opponent 1.00 at 1M steps on seeds 0 and 1 (docs/training_results.md,
-"Which policy ``train`` uses by default").
+one minibatch at 0.05 learn too slowly for a short run (measured on the engine before the weapons' wind-up, when the
+quick start was 50k steps): 50k steps against the ``default`` pool win 0.44 and the sampled training battles none
+by 100k, where 10 epochs of 4 minibatches at 0.2 win 0.63 and 0.47 of them (the joint MLP: 0.66 and 0.69), and
+against SMAC's opponent 1.00 at 1M steps on seeds 0 and 1 (docs/training_results.md, "Which policy ``train`` uses
+by default").
 """
 
 from __future__ import annotations
@@ -64,9 +65,9 @@ MAPPO_SMAC: dict[str, dict[str, Any]] = {
 
 # where our measurements differ from MAPPO's choice (docs/training_results.md, "MAPPO's settings for each map");
 # "joint_clip" overrides CLIP_FOR_EPOCHS: on 3s_vs_5z MAPPO's per-unit 0.05 over three units (1.05 ** 3 = 1.16),
-# and the same on 3s_vs_4z, its three stalkers against four zealots; on 8m_vs_9m the clip of the 10- and 5-epoch
-# maps (8m_vs_9m 0.05 learned it late); on 3m, the quick start's map, 10 epochs of 4 minibatches at 0.2: MAPPO's 15
-# small passes learn it too slowly for a 50k-step run
+# and the same on 3s_vs_4z, its three stalkers against four zealots; on 8m_vs_9m 0.2, the clip of the 10- and
+# 5-epoch maps (0.05 learned it late); on 3m, the quick start's map, 10 epochs of 4 minibatches at 0.2: MAPPO's 15
+# small passes learn it too slowly for a short run
 MEASURED: dict[str, dict[str, Any]] = {"27m_vs_30m": {"memory": "none"}, "25m": {"memory": "none"},
                                        "3s_vs_5z": {"joint_clip": 0.15}, "3s_vs_4z": {"joint_clip": 0.15},
                                        "8m_vs_9m": {"joint_clip": 0.2},
