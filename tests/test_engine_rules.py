@@ -226,6 +226,64 @@ def test_a_move_after_the_shot_keeps_its_damage():
     assert engine.state.x[0, 0] < 10.0
 
 
+# --- Range slop (section 2, C8): a weapon's RangeSlop (1 by core's default, 0 for the colossus's ThermalLances and
+# the spine crawler's ImpalerTentacle) is how far past its range the target of an attack in progress may go before
+# the attack is cancelled. Starting an attack still needs the plain range.
+
+
+def _hydralisk_on_a_marine(distance: float):
+    """A passive hydralisk (r 0.625, range 5: reach 6 centre to centre with the marine's r 0.375) ordered onto a
+    marine ``distance`` east of it, run one loop: its 3-loop wind-up (0.14 s) has started."""
+    engine = engine_with(["Hydralisk_RL"], ["Marine_RL"], {0: (10.0, 16.0), 1: (10.0 + distance, 16.0)})
+    _order(engine, 0, CMD_ATTACK, target=1)
+    _run(engine, 1)
+    return engine
+
+
+def test_a_target_walking_out_of_range_in_the_wind_up_still_takes_the_shot():
+    # The marine, 5.9 away, walks east at the hydralisk's own speed from loop 1: 6.04, 6.18, 6.32 at loops 1-3, out
+    # of range but within 6 + 1 of slop. The hydralisk stands through its wind-up and fires in loop 3; the spine
+    # flies ceil(6.32 / 2.5) = 3 loops and lands in loop 6 (12 damage, armour 0). Then it chases at equal speed and
+    # never gets in range again.
+    engine = _hydralisk_on_a_marine(5.9)
+    _order(engine, 1, CMD_MOVE, point=(30.0, 16.0))
+    _run(engine, 3)
+    assert engine.state.x[0, 0] == 10.0
+    assert engine.state.pending_target[0, 0] == 1
+    _run(engine, 2)
+    assert engine.state.health[0, 1] == 45.0
+    _run(engine, 1)
+    assert engine.state.health[0, 1] == pytest.approx(33.0)
+    _run(engine, 24)
+    assert engine.state.health[0, 1] == pytest.approx(33.0)
+    assert engine.state.x[0, 0] > 10.0
+
+
+@pytest.mark.parametrize(("distance", "fires"), [(6.95, True), (7.05, False)])
+def test_the_attack_in_progress_is_cancelled_beyond_the_slop(distance, fires):
+    # The marine is moved to ``distance`` (reach 6 plus slop 1 = 7) once the wind-up has started; a cancelled attack
+    # spends no cooldown (the hydralisk then walks after it).
+    engine = _hydralisk_on_a_marine(5.9)
+    engine.place(0, 1, x=10.0 + distance)
+    _order(engine, 1, CMD_HOLD)
+    _run(engine, 3)  # loops 1-3: the shot is due in loop 3
+    assert (engine.state.pending_target[0, 0] == 1) == fires
+    assert (engine.state.cooldown[0, 0] > 0.0) == fires
+
+
+def test_the_colossus_has_no_slop():
+    # ThermalLances' RangeSlop is 0: a colossus (r 1, range 7: reach 8.375 to a marine) whose target steps from 8.3
+    # to 8.5 during its 2-loop wind-up (0.0832 s, due in loop 2) walks after it instead. Its new attack starts in
+    # loop 1, back in reach (8.359), and is due in loop 3: nothing has fired after loops 0-2.
+    engine = engine_with(["Colossus_RL"], ["Marine_RL"], {0: (10.0, 16.0), 1: (18.3, 16.0)})
+    _order(engine, 0, CMD_ATTACK, target=1)
+    _run(engine, 1)
+    engine.place(0, 1, x=18.5)
+    _order(engine, 1, CMD_HOLD)
+    _run(engine, 2)
+    assert engine.state.health[0, 1] == 45.0 and engine.state.cooldown[0, 0] == 0.0
+
+
 # --- Missiles (section 2): the stalker's, hydralisk's and marauder's shots fly; they home, never miss, and land
 # even if the shooter has died.
 

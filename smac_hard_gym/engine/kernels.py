@@ -109,7 +109,7 @@ _ENERGY_MAX, _ENERGY_REGEN = S["energy_max"], S["energy_regen"]
 _HEAL_RATE, _HEAL_COST, _REGEN, _DECAY = S["heal_rate"], S["heal_energy_per_hp"], S["regen"], S["decay"]
 _PASSIVE, _SCAN, _SHIELD_REGEN = S["passive"], S["scan_range"], S["shield_regen"]
 _MISSILE_SPEED, _SECOND_DELAY, _SECOND_REACH = S["missile_speed"], S["second_hit_delay"], S["second_hit_reach"]
-_WIND_UP = S["wind_up"]
+_WIND_UP, _SLOP = S["wind_up"], S["range_slop"]
 
 _SHIELD_DELAY = SHIELD_REGEN_DELAY_LOOPS
 _MIN_DAMAGE = MIN_DAMAGE
@@ -720,7 +720,7 @@ def _movement(n, r, slot_stats, terrain):
     decided where units bump: in ``_separation``.)
     """
     alive, x, y, x0, y0, stance, side = r.alive, r.x, r.y, r.x0, r.y0, r.stance, r.side
-    order, order_x, order_y, target = r.order, r.order_x, r.order_y, r.target
+    order, order_x, order_y, target, windup_target = r.order, r.order_x, r.order_y, r.target, r.windup_target
     walk, next_hop, los, open_field = terrain.walk, terrain.next_hop, terrain.los, terrain.open_field
     for i in range(n):
         x0[i] = x[i]
@@ -734,10 +734,13 @@ def _movement(n, r, slot_stats, terrain):
         j = target[i]
         o = order[i]
         if j >= 0:
+            # in range, or within the slop of an attack in progress on it (C8): stand and act
+            slop = slot_stats[i, _SLOP] if windup_target[i] == j else 0.0
             if _within(x0[i], y0[i], x0[j], y0[j],
-                       slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
-                stance[i] = STANCE_FIRING  # in range: stand and act
+                       slot_stats[i, _RANGE] + slop + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
+                stance[i] = STANCE_FIRING
                 continue
+            windup_target[i] = NO_UNIT  # walking after the target abandons the attack in progress
         elif o == ORDER_MOVE or o == ORDER_ATTACK_MOVE:
             dx, dy = order_x[i] - x0[i], order_y[i] - y0[i]
             if dx * dx + dy * dy <= _ARRIVE * _ARRIVE:
@@ -1041,12 +1044,14 @@ def _uniform(rng):
 
 
 @helper
-def _target_in_reach(i, alive0, x, y, target, slot_stats):
-    """Unit i's target if both were alive when the loop began and it is within i's weapon range, else NO_UNIT."""
+def _target_in_reach(i, alive0, x, y, target, slot_stats, extra=0.0):
+    """Unit i's target if both were alive when the loop began and it is within i's weapon range (plus ``extra``),
+    else NO_UNIT."""
     j = target[i]
     if not alive0[i] or j < 0 or not alive0[j]:
         return NO_UNIT
-    if not _within(x[i], y[i], x[j], y[j], slot_stats[i, _RANGE] + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]):
+    reach = slot_stats[i, _RANGE] + extra + slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
+    if not _within(x[i], y[i], x[j], y[j], reach):
         return NO_UNIT
     return j
 
@@ -1155,8 +1160,9 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi, now):
 
     The wind-up (SC2's DamagePoint, docs/engine_rules.md C5) lasts ``wind_up`` loops. It starts once the
     target is in reach and the cooldown has at most that many loops left, so in steady fire it overlaps the end of
-    the cooldown and the period stays the weapon's. The target changing, dying or leaving reach cancels it (so does
-    a new order, ``_apply_commands``) without spending the cooldown."""
+    the cooldown and the period stays the weapon's. The target changing, dying or going further than the weapon's
+    range slop past its range cancels it (so does a new order, ``_apply_commands``) without spending the
+    cooldown."""
     side, alive0, x, y, health, shield = r.side, r.alive_at_loop, r.x, r.y, r.health, r.shield
     energy, cooldown, shield_wait, target, attacker = r.energy, r.cooldown, r.shield_wait, r.target, r.attacker
     fired_at, burst, rng, windup, windup_target = r.fired_at, r.burst, r.rng, r.windup, r.windup_target
@@ -1166,8 +1172,12 @@ def _attacks(n, r, slot_stats, jitter_lo, jitter_hi, now):
     heals = False
     for i in range(n):
         j = _target_in_reach(i, alive0, x, y, target, slot_stats)
-        if windup_target[i] != j:
-            windup_target[i] = NO_UNIT
+        if windup_target[i] >= 0 and windup_target[i] != j:
+            # an attack in progress goes on while its target stays within the range slop (docs/engine_rules.md C8)
+            if _target_in_reach(i, alive0, x, y, target, slot_stats, slot_stats[i, _SLOP]) == windup_target[i]:
+                j = windup_target[i]
+            else:
+                windup_target[i] = NO_UNIT
         if j < 0:
             continue
         weapon = slot_stats[i, _WEAPON]
