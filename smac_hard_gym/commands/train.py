@@ -1,7 +1,8 @@
 """``smac-hard-gym train``: MaskablePPO on the native vector env (or on Ray actors with ``--ray [ADDRESS]``), with a
 masked win-rate evaluation on a schedule.
 
-Writes ``model.zip``, ``config.json``, ``curve.csv``, ``curve.png`` and ``summary.json`` into ``--out``. Needs the
+Writes ``model.zip``, ``config.json``, ``curve.csv``, ``curve.png`` and ``summary.json`` into ``--out``, and a
+checkpoint every ``--checkpoint-every`` steps that ``--resume`` carries the run on from. Needs the
 ``[train]`` extra: ``pip install -e ".[train]"``.
 """
 
@@ -15,6 +16,8 @@ from smac_hard_gym.training.config import POLICIES, POLICY_DEFAULTS, REWARDS
 from smac_hard_gym.training.mappo_settings import CLIP_FOR_EPOCHS, RATIOS
 
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
+# the options `train --resume` takes besides --out (the rest are the run's own, from its config.json)
+RESUME_OPTIONS = ("timesteps", "no-progress", "torch-threads", "env-threads", "checkpoint-every")
 
 
 def _policy_defaults() -> str:
@@ -100,54 +103,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="Ray actors, each with num-envs / ray-actors battles (default 2)")
     parser.add_argument("--tensorboard", default="", metavar="DIR",
                         help="also log to TensorBoard in DIR (needs the tensorboard package)")
+    parser.add_argument("--checkpoint-every", type=int, default=100_000, metavar="STEPS",
+                        help="write checkpoint.zip and checkpoint.json into --out every STEPS env steps and at the "
+                             "end, what --resume carries on from (default 100000; 0: at the end only; none in a "
+                             "league run)")
+    parser.add_argument("--resume", action="store_true",
+                        help="carry on the run in --out from its checkpoint, with the run's own settings (its "
+                             "config.json), to its --timesteps or to the --timesteps given (more than the checkpoint "
+                             f"has); with it only {', '.join('--' + o for o in RESUME_OPTIONS)} may be given")
+    # what each option is when not given, so that --resume can tell which were
+    parser.set_defaults(option_defaults=vars(parser.parse_args([])))
 
 
 def run(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
-    from smac_hard_gym.maps import list_maps
-    from smac_hard_gym.training import TrainConfig, train
+    from smac_hard_gym.training import train
 
-    if args.map not in list_maps():
-        raise SystemExit(f"unknown map {args.map!r}; maps: {', '.join(list_maps())}")
-    try:
-        net_arch = [int(n) for n in args.net_arch.split(",")]
-    except ValueError:
-        raise SystemExit(f"--net-arch must be comma-separated ints, got {args.net_arch!r}") from None
-    try:
-        config = TrainConfig(
-            map_name=args.map, opponent=args.opponent, timesteps=args.timesteps, num_envs=args.num_envs,
-            seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
-            obs_mode=args.obs_mode, frame_stack=args.frame_stack, clip_range=args.clip_range,
-            policy=args.policy, ratio=args.ratio, n_steps=args.n_steps, batch_size=args.batch_size,
-            n_epochs=args.epochs,
-            learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, ent_coef_final=args.ent_coef_final,
-            max_grad_norm=args.max_grad_norm,
-            reward=args.reward, net_arch=net_arch,
-            torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
-            tensorboard=args.tensorboard, league=args.league, league_every=args.league_every,
-            league_weighting=args.league_weighting, ray=args.ray is not None,
-            ray_address=None if args.ray in (None, "local") else args.ray, ray_actors=args.ray_actors)
-        if config.ray:
-            import ray  # noqa: F401  (a clear error now rather than after the model is built)
-        from smac_hard_gym.opponents import make_opponent, opponent_from_text
-
-        make_opponent(args.map, opponent_from_text(args.opponent))
-    except ModuleNotFoundError as err:
-        hint = "; pip install 'smac-hard-gym[ray]'" if err.name == "ray" else ""
-        raise SystemExit(f"smac-hard-gym train: {err}{hint}") from None
-    except (TypeError, ValueError, FileNotFoundError, ImportError) as err:
-        raise SystemExit(f"smac-hard-gym train: {err}") from None
+    config = _resumed_config(args) if args.resume else _new_config(args)
     print("config:")
     for key, value in asdict(config).items():
-        print(f"  {key:<15} {value}")
-    print(f"  {'eval_interval':<15} {config.eval_interval}")
+        print(f"  {key:<16} {value}")
+    print(f"  {'eval_interval':<16} {config.eval_interval}")
     missing = _kernels_to_compile(config)
     if missing is None or missing:
         from smac_hard_gym.kernel_cache import compiling_notice
 
         print(compiling_notice(missing), flush=True)
-    summary = train(config)
+    try:
+        summary = train(config, resume=args.resume)
+    except ValueError as err:  # a checkpoint that cannot be carried on
+        if not args.resume:
+            raise
+        raise SystemExit(f"smac-hard-gym train --resume: {err}") from None
     if summary["interrupted"]:
         if summary["final_win_rate"] is None:
             measured = "no test win rate measured since training began (the first evaluation comes at " \
@@ -177,6 +165,77 @@ def run(args: argparse.Namespace) -> int:
           f"training wall time ({summary['env_fraction']:.1%})")
     print("files: " + json.dumps({k: v for k, v in summary["files"].items() if v}))
     return 0
+
+
+def _new_config(args: argparse.Namespace) -> Any:
+    """The :class:`TrainConfig` of a new run from the command line's options."""
+    from smac_hard_gym.maps import list_maps
+    from smac_hard_gym.training import TrainConfig
+
+    if args.map not in list_maps():
+        raise SystemExit(f"unknown map {args.map!r}; maps: {', '.join(list_maps())}")
+    try:
+        net_arch = [int(n) for n in args.net_arch.split(",")]
+    except ValueError:
+        raise SystemExit(f"--net-arch must be comma-separated ints, got {args.net_arch!r}") from None
+    try:
+        config = TrainConfig(
+            map_name=args.map, opponent=args.opponent, timesteps=args.timesteps, num_envs=args.num_envs,
+            seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
+            obs_mode=args.obs_mode, frame_stack=args.frame_stack, clip_range=args.clip_range,
+            policy=args.policy, ratio=args.ratio, n_steps=args.n_steps, batch_size=args.batch_size,
+            n_epochs=args.epochs,
+            learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, ent_coef_final=args.ent_coef_final,
+            max_grad_norm=args.max_grad_norm,
+            reward=args.reward, net_arch=net_arch,
+            torch_threads=args.torch_threads, env_threads=args.env_threads, progress=not args.no_progress,
+            tensorboard=args.tensorboard, league=args.league, league_every=args.league_every,
+            league_weighting=args.league_weighting, ray=args.ray is not None,
+            ray_address=None if args.ray in (None, "local") else args.ray, ray_actors=args.ray_actors,
+            checkpoint_every=args.checkpoint_every)
+        if config.ray:
+            import ray  # noqa: F401  (a clear error now rather than after the model is built)
+        from smac_hard_gym.opponents import make_opponent, opponent_from_text
+
+        make_opponent(args.map, opponent_from_text(args.opponent))
+    except ModuleNotFoundError as err:
+        hint = "; pip install 'smac-hard-gym[ray]'" if err.name == "ray" else ""
+        raise SystemExit(f"smac-hard-gym train: {err}{hint}") from None
+    except (TypeError, ValueError, FileNotFoundError, ImportError) as err:
+        raise SystemExit(f"smac-hard-gym train: {err}") from None
+    return config
+
+
+def _resumed_config(args: argparse.Namespace) -> Any:
+    """The :class:`TrainConfig` of the run in ``--out`` (its config.json), with the options a resume may change."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from smac_hard_gym.training.run_files import load_run_config
+
+    allowed = {o.replace("-", "_") for o in RESUME_OPTIONS} | {"resume", "out", "option_defaults"}
+    given = [name for name, default in args.option_defaults.items()
+             if name not in allowed and getattr(args, name) != default]
+    if given:
+        raise SystemExit(f"smac-hard-gym train --resume: the run keeps its own settings, so "
+                         f"--{given[0].replace('_', '-')} cannot be given (with --resume: --out, "
+                         f"{', '.join('--' + o for o in RESUME_OPTIONS)})")
+    if not args.out:
+        raise SystemExit("smac-hard-gym train --resume: name the run's folder with --out")
+    try:
+        saved = load_run_config(Path(args.out) / "config.json")
+    except ValueError as err:
+        raise SystemExit(f"smac-hard-gym train --resume: {err}") from None
+    if saved is None:
+        raise SystemExit(f"smac-hard-gym train --resume: no run in {args.out!r} (no config.json)")
+    changes: dict[str, Any] = {"progress": not args.no_progress, "out": args.out}  # the folder may have moved
+    for name in ("timesteps", "torch_threads", "env_threads", "checkpoint_every"):
+        if getattr(args, name) != args.option_defaults[name]:
+            changes[name] = getattr(args, name)
+    try:
+        return replace(saved, **changes)
+    except (TypeError, ValueError) as err:
+        raise SystemExit(f"smac-hard-gym train --resume: {err}") from None
 
 
 def _kernels_to_compile(config: Any) -> list[str] | None:

@@ -55,6 +55,8 @@ class TrainConfig:
     eval_every: int = 0  # env steps between evaluations; 0: a tenth of the run
     eval_episodes: int = 32
     eval_envs: int = 16
+    # env steps between checkpoints (checkpoint.zip / .json, what `train --resume` carries on from); 0: only at the end
+    checkpoint_every: int = 100_000
     policy: str = "shared"  # "shared": the unit-shared MAPPO policy (sb3_shared); "joint": the joint MLP (sb3_policy)
     # what PPO's clip applies to: "joint" (SB3's MaskablePPO, the whole action's ratio) or "unit" (each unit's,
     # MAPPO's loss: sb3_unit_ppo, the shared policy only)
@@ -122,6 +124,10 @@ class TrainConfig:
                 or self.seed + self.num_envs > TEST_SEED_BASE:
             raise ValueError(f"seed must be an int in [0, {TEST_SEED_BASE - self.num_envs}] (training battles are "
                              f"seeded seed + b, below the test seeds from {TEST_SEED_BASE}), got {self.seed!r}")
+        if isinstance(self.checkpoint_every, bool) or not isinstance(self.checkpoint_every, (int, np.integer)) \
+                or self.checkpoint_every < 0:
+            raise ValueError(f"checkpoint_every must be an int >= 0 (0: at the end only), got "
+                             f"{self.checkpoint_every!r}")
         if self.eval_every < 0:
             raise ValueError(f"eval_every must be >= 0 (0: a tenth of the run), got {self.eval_every!r}")
         if not self.net_arch or any(int(n) < 1 for n in self.net_arch):

@@ -57,18 +57,25 @@ def eval_callback_class() -> type:
     from stable_baselines3.common.callbacks import BaseCallback
 
     class EvalAndProgress(BaseCallback):
-        """Progress bar, and a masked win-rate evaluation every ``interval`` steps (plus at the start and end)."""
+        """Progress bar, a masked win-rate evaluation every ``interval`` steps (plus at the start and end), and a
+        call to ``checkpoint`` every ``checkpoint_interval`` steps; a resumed run passes the steps it starts from
+        (``start``) and its next evaluation's step."""
 
         def __init__(self, evaluate_now: Callable[..., dict[str, Any]], interval: int, total: int,
-                     progress: bool) -> None:
+                     progress: bool, checkpoint: Callable[[], None] | None = None, checkpoint_interval: int = 0,
+                     start: int = 0, next_eval: int | None = None) -> None:
             super().__init__()
             self.evaluate_now = evaluate_now
             self.interval = interval
             self.total = total
             self.progress = progress
             self.bar: Any = None
-            self.next_eval = interval
+            self.start = start  # the steps a resumed run had trained before this process
+            self.next_eval = interval if next_eval is None else next_eval
             self.train_results: list[bool] = []
+            self.checkpoint = checkpoint
+            self.checkpoint_interval = checkpoint_interval
+            self.next_checkpoint = start + checkpoint_interval
 
         def take_train_results(self) -> list[bool]:
             results, self.train_results = self.train_results, []
@@ -83,7 +90,7 @@ def eval_callback_class() -> type:
                 # SB3 stops at the first whole rollout past the requested steps.
                 rollout = self.training_env.num_envs * self.model.n_steps
                 total = -(-self.total // rollout) * rollout
-                self.bar = tqdm(total=total, unit="step", desc="train", dynamic_ncols=True,
+                self.bar = tqdm(total=total, initial=self.start, unit="step", desc="train", dynamic_ncols=True,
                                 mininterval=0.5 if sys.stderr.isatty() else 30.0)
 
         def _on_step(self) -> bool:
@@ -104,6 +111,11 @@ def eval_callback_class() -> type:
                 row = self.evaluate_now(self.num_timesteps, self.take_train_results())
                 if self.bar is not None:
                     self.bar.set_postfix(win_rate=f"{row['win_rate']:.2f}", env=f"{row['env_fraction']:.0%}")
+            # Checkpointed here too, where the weights are those trained on exactly ``num_timesteps`` steps.
+            if self.checkpoint is not None and self.checkpoint_interval and self.num_timesteps >= self.next_checkpoint:
+                while self.next_checkpoint <= self.num_timesteps:
+                    self.next_checkpoint += self.checkpoint_interval
+                self.checkpoint()
 
         def _on_training_end(self) -> None:
             self.close_bar()

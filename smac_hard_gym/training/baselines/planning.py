@@ -1,6 +1,6 @@
 """What a sweep runs: its settings (:class:`SweepConfig`), its runs (:func:`plan`), the state of a run's folder
-(:func:`run_state`) and the command line of each job (``smac-hard-gym train``, the black-box ``eval``, the value
-estimate)."""
+(:func:`run_state`, :func:`resumable`) and the command line of each job (``smac-hard-gym train``, or ``train --resume``
+for a run cut short after a checkpoint, the black-box ``eval``, the value estimate)."""
 
 from __future__ import annotations
 
@@ -10,10 +10,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from smac_hard_gym.training.checkpoints import read_checkpoint
 from smac_hard_gym.training.protocol import TEST_SEED_BASE
 
-__all__ = ["SweepConfig", "Run", "EXPERIMENTS", "SWEEP_OPPONENTS", "plan", "run_state", "train_command",
-           "blackbox_command", "value_command"]
+__all__ = ["SweepConfig", "Run", "EXPERIMENTS", "SWEEP_OPPONENTS", "plan", "run_state", "resumable", "resume_command",
+           "train_command", "blackbox_command", "value_command"]
 
 EXPERIMENTS: dict[str, dict[str, Any]] = {
     "mixing": {"maps": ["10m_vs_11m"], "opponents": ["nearest", "weakest", "nearest,weakest"], "blackbox": False,
@@ -109,6 +110,19 @@ def run_state(path: Path) -> str:
             return "done"
         return "partial"
     return "partial" if path.exists() else "todo"
+
+
+def resumable(path: Path, timesteps: int) -> bool:
+    """Whether a run cut short in ``path`` left a checkpoint that ``train --resume`` can carry on to ``timesteps``."""
+    try:
+        return read_checkpoint(path).timesteps < timesteps
+    except (ValueError, FileNotFoundError):
+        return False
+
+
+def resume_command(run: Run, config: SweepConfig) -> list[str]:
+    return [sys.executable, "-m", "smac_hard_gym.cli", "train", "--resume", "--out", str(run.path(config.out)),
+            "--timesteps", str(config.timesteps), "--no-progress"]
 
 
 def train_command(run: Run, config: SweepConfig) -> list[str]:

@@ -17,6 +17,8 @@ from smac_hard_gym.training.baselines.planning import (
     SweepConfig,
     blackbox_command,
     plan,
+    resumable,
+    resume_command,
     run_state,
     train_command,
     value_command,
@@ -30,7 +32,7 @@ def _start(command: list[str], log: Path) -> subprocess.Popen:
     from smac_hard_gym.lifetime import die_with_parent_hook
 
     log.parent.mkdir(parents=True, exist_ok=True)
-    with log.open("w") as handle:  # the child keeps its own copy of the descriptor
+    with log.open("a") as handle:  # the child keeps its own copy; a resumed run's log goes on after its first part
         return subprocess.Popen(command, stdout=handle, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 preexec_fn=die_with_parent_hook())
 
@@ -96,14 +98,18 @@ def run_sweep(config: SweepConfig, *, progress: bool = True, log: Callable[[str]
     runs = plan(config)
     states = {run: run_state(run.path(out)) for run in runs}
     log(f"{len(runs)} runs: {sum(s == 'done' for s in states.values())} done, "
-        f"{sum(s == 'partial' for s in states.values())} partial (redone), "
+        f"{sum(s == 'partial' for s in states.values())} partial (carried on from a checkpoint, or redone), "
         f"{sum(s == 'todo' for s in states.values())} to do")
     jobs: list[tuple[str, list[Step]]] = []
     for run in runs:
         path = run.path(out)
+        command = train_command(run, config)
         if states[run] == "partial":
-            shutil.rmtree(path)
-        train = [] if states[run] == "done" else [(train_command(run, config), path / "train.log")]
+            if resumable(path, config.timesteps):  # carried on from its last checkpoint
+                command = resume_command(run, config)
+            else:
+                shutil.rmtree(path)
+        train = [] if states[run] == "done" else [(command, path / "train.log")]
         steps = train + _evaluations(run, config)
         if steps:
             jobs.append((run.label, steps))
