@@ -11,6 +11,7 @@ import pytest
 import torch
 from sb3_contrib import MaskablePPO
 from stable_baselines3.common.vec_env import VecMonitor
+from train_helpers import interrupt_learn_at
 
 from smac_hard_gym.cli import main
 from smac_hard_gym.envs.subproc import make_subproc_env
@@ -143,30 +144,12 @@ def test_ctrl_c_during_training_keeps_model_curve_and_summary(tmp_path, capsys, 
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
 
 
-def _interrupt_learn_at(monkeypatch, steps):
-    """MaskablePPO.learn raising KeyboardInterrupt (Ctrl-C) once ``steps`` env steps have been trained."""
-    from stable_baselines3.common.callbacks import BaseCallback, CallbackList
-
-    learn = MaskablePPO.learn
-
-    class CtrlC(BaseCallback):
-        def _on_step(self):
-            if self.num_timesteps >= steps:
-                raise KeyboardInterrupt
-            return True
-
-    def interrupted_learn(self, total_timesteps, callback=None, **kwargs):
-        return learn(self, total_timesteps, callback=CallbackList([callback, CtrlC()]), **kwargs)
-
-    monkeypatch.setattr(MaskablePPO, "learn", interrupted_learn)
-
-
 @pytest.mark.parametrize(("eval_every", "rate_at"), [(1024, None), (256, 256)])
 def test_ctrl_c_mid_run_reports_the_real_steps_and_the_last_measured_rate(tmp_path, capsys, monkeypatch,
                                                                           eval_every, rate_at):
     import gc
 
-    _interrupt_learn_at(monkeypatch, 300)  # 4 envs x 75 steps: past the first rollout of 256
+    interrupt_learn_at(monkeypatch, 300)  # 4 envs x 75 steps: past the first rollout of 256
     out = tmp_path / "run"
     argv = ["train", "--map", "3m", "--timesteps", "2048", "--num-envs", "4", "--n-steps", "64", "--batch-size",
             "128", "--epochs", "1", "--eval-every", str(eval_every), "--eval-episodes", "2", "--out", str(out)]

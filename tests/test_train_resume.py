@@ -12,6 +12,7 @@ import sys
 import pytest
 import torch
 from sb3_contrib import MaskablePPO
+from train_helpers import interrupt_learn_at
 
 from smac_hard_gym.cli import main
 from smac_hard_gym.training.baselines import Run, SweepConfig, run_sweep
@@ -24,24 +25,6 @@ ROLLOUT = 4 * 64
 RUN = ["train", "--map", "3m", "--policy", "shared", "--timesteps", str(4 * ROLLOUT), "--num-envs", "4",
        "--n-steps", "64", "--epochs", "1", "--eval-every", str(2 * ROLLOUT), "--eval-episodes", "2",
        "--checkpoint-every", str(ROLLOUT), "--no-progress"]
-
-
-def _interrupt_learn_at(monkeypatch, steps):
-    """MaskablePPO.learn raising KeyboardInterrupt (Ctrl-C) once ``steps`` env steps have been trained."""
-    from stable_baselines3.common.callbacks import BaseCallback, CallbackList
-
-    learn = MaskablePPO.learn
-
-    class CtrlC(BaseCallback):
-        def _on_step(self):
-            if self.num_timesteps >= steps:
-                raise KeyboardInterrupt
-            return True
-
-    def interrupted_learn(self, total_timesteps, callback=None, **kwargs):
-        return learn(self, total_timesteps, callback=CallbackList([callback, CtrlC()]), **kwargs)
-
-    monkeypatch.setattr(MaskablePPO, "learn", interrupted_learn)
 
 
 def _curve_steps(out):
@@ -59,7 +42,7 @@ def _cut_run(tmp_path, monkeypatch, capsys):
     rollout, 512 steps, just after the evaluation there."""
     out = tmp_path / "run"
     with monkeypatch.context() as patch:
-        _interrupt_learn_at(patch, 2 * ROLLOUT + 88)
+        interrupt_learn_at(patch, 2 * ROLLOUT + 88)
         assert main([*RUN, "--out", str(out)]) == 130
     capsys.readouterr()
     assert json.loads((out / "checkpoint.json").read_text())["timesteps"] == 2 * ROLLOUT
@@ -106,7 +89,7 @@ def test_a_new_run_in_an_old_runs_folder_drops_the_old_checkpoint(tmp_path, monk
     out = tmp_path / "run"
     assert main([*RUN, "--out", str(out)]) == 0  # finished: checkpoint at 1024
     with monkeypatch.context() as patch:
-        _interrupt_learn_at(patch, 100)  # the same command again, stopped before its first checkpoint
+        interrupt_learn_at(patch, 100)  # the same command again, stopped before its first checkpoint
         assert main([*RUN, "--out", str(out)]) == 130
     assert not (out / "checkpoint.json").exists()
     with pytest.raises(SystemExit, match=r"no checkpoint to resume"):
