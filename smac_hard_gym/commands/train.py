@@ -12,12 +12,15 @@ import argparse
 import json
 from typing import Any
 
+from smac_hard_gym.training.checkpoints import RESUMABLE_OPTIONS
 from smac_hard_gym.training.config import POLICIES, POLICY_DEFAULTS, REWARDS
 from smac_hard_gym.training.mappo_settings import CLIP_FOR_EPOCHS, RATIOS
 
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
-# the options `train --resume` takes besides --out (the rest are the run's own, from its config.json)
-RESUME_OPTIONS = ("timesteps", "no-progress", "torch-threads", "env-threads", "checkpoint-every")
+# the options `train --resume` takes besides --out: the settings a resume may change, as the command line spells them
+# (the rest are the run's own, from its config.json)
+RESUME_OPTIONS = tuple("no-progress" if name == "progress" else name.replace("_", "-")
+                       for name in RESUMABLE_OPTIONS if name != "out")
 
 
 def _policy_defaults() -> str:
@@ -213,7 +216,7 @@ def _resumed_config(args: argparse.Namespace) -> Any:
 
     from smac_hard_gym.training.run_files import load_run_config
 
-    allowed = {o.replace("-", "_") for o in RESUME_OPTIONS} | {"resume", "out", "option_defaults"}
+    allowed = {*RESUMABLE_OPTIONS, "no_progress", "resume", "option_defaults"}
     given = [name for name, default in args.option_defaults.items()
              if name not in allowed and getattr(args, name) != default]
     if given:
@@ -229,8 +232,8 @@ def _resumed_config(args: argparse.Namespace) -> Any:
     if saved is None:
         raise SystemExit(f"smac-hard-gym train --resume: no run in {args.out!r} (no config.json)")
     changes: dict[str, Any] = {"progress": not args.no_progress, "out": args.out}  # the folder may have moved
-    for name in ("timesteps", "torch_threads", "env_threads", "checkpoint_every"):
-        if getattr(args, name) != args.option_defaults[name]:
+    for name in RESUMABLE_OPTIONS:
+        if name not in changes and getattr(args, name) != args.option_defaults[name]:
             changes[name] = getattr(args, name)
     try:
         return replace(saved, **changes)
