@@ -17,7 +17,7 @@ from train_helpers import interrupt_learn_at
 from smac_hard_gym.cli import main
 from smac_hard_gym.training.baselines import Run, SweepConfig, run_sweep
 from smac_hard_gym.training.baselines import sweep as sweep_module
-from smac_hard_gym.training.baselines.planning import resumable
+from smac_hard_gym.training.baselines.planning import resumable, run_state
 
 torch.set_num_threads(1)
 
@@ -127,6 +127,7 @@ def test_the_sweep_carries_a_cut_run_on_from_its_checkpoint(tmp_path, monkeypatc
     (path / "checkpoint.json").write_text(json.dumps({"timesteps": 600, "rows": [{"timesteps": 0}],
                                                       "next_eval": 1000}))
     assert resumable(path, 1000) and not resumable(path, 600)
+    assert run_state(path, 1000) == "resumable" and run_state(path, 600) == run_state(path) == "partial"
     (path / "train.log").write_text("first part\n")
     started = tmp_path / "started.txt"
 

@@ -40,7 +40,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from smac_hard_gym.training.baselines import SweepConfig, plan, report_markdown, run_state, run_sweep, write_report
-    from smac_hard_gym.training.baselines.planning import resumable
 
     if args.report:
         path = write_report(args.out, args.report)
@@ -54,13 +53,11 @@ def run(args: argparse.Namespace) -> int:
                          eval_episodes=args.eval_episodes, num_envs=args.num_envs, jobs=args.jobs,
                          experiment=args.experiment, train_args=shlex.split(args.train_args))
     runs = plan(config)
-    states = [run_state(r.path(config.out)) for r in runs]
-    states = ["resumed" if state == "partial" and resumable(r.path(config.out), config.timesteps) else state
-              for r, state in zip(runs, states, strict=True)]
+    states = [run_state(r.path(config.out), config.timesteps) for r in runs]
     print(f"sweep: {len(config.maps)} map(s) x {len(config.opponents)} opponent(s) "
           f"({', '.join(config.opponents)}) x {config.seeds} seed(s) = {len(runs)} runs of {config.timesteps:,} "
           f"steps, {config.jobs} at a time, into {config.out}")
-    print(f"  done {states.count('done')}, cut short with a checkpoint (resumed) {states.count('resumed')}, "
+    print(f"  done {states.count('done')}, cut short with a checkpoint (resumed) {states.count('resumable')}, "
           f"partial (redone) {states.count('partial')}, to do {states.count('todo')}"
           f"; black-box evaluation: {'yes' if config.blackbox else 'no'}; values: {'yes' if config.values else 'no'}")
     if args.dry_run:

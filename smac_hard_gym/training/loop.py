@@ -124,11 +124,14 @@ def _train(config: TrainConfig, log: Callable[[str], None], resume: bool) -> dic
     rows: list[dict[str, Any]] = [] if state is None else list(state.rows)
     clock = {"start": time.perf_counter(), "eval": 0.0}
 
+    def train_wall() -> float:  # training time so far, evaluations left out
+        return time.perf_counter() - clock["start"] - clock["eval"]
+
     def evaluate_now(timesteps: int, train_results: Sequence[bool] = ()) -> dict[str, Any]:
         start = time.perf_counter()
         result = evaluate(model, eval_env, config.eval_episodes, seed=TEST_SEED_BASE)
         clock["eval"] += time.perf_counter() - start
-        wall = time.perf_counter() - clock["start"] - clock["eval"]  # training time, evaluations left out
+        wall = train_wall()
         row = {"timesteps": timesteps, "win_rate": result.win_rate, "mean_return": result.mean_return,
                "mean_length": result.mean_length, "episodes": result.episodes,
                "train_win_rate": float(np.mean(train_results)) if len(train_results) else float("nan"),
@@ -142,11 +145,10 @@ def _train(config: TrainConfig, log: Callable[[str], None], resume: bool) -> dic
         return row
 
     def checkpoint() -> None:
-        wall = time.perf_counter() - clock["start"] - clock["eval"]
         with atomic_path(out / CHECKPOINT_MODEL) as tmp:
             model.save(tmp)
         write_state(out, RunState(timesteps=int(model.num_timesteps), rows=rows, next_eval=progress.next_eval,
-                                  train_results=list(progress.train_results), wall_s=wall,
+                                  train_results=list(progress.train_results), wall_s=train_wall(),
                                   env_s=timed.env_seconds, resumed_from=resumed_from))
 
     resumed_from = [] if state is None else [*state.resumed_from, state.timesteps]

@@ -97,19 +97,20 @@ def plan(config: SweepConfig) -> list[Run]:
     return [Run(m, o, s) for m in config.maps for o in config.opponents for s in range(config.seeds)]
 
 
-def run_state(path: Path) -> str:
+def run_state(path: Path, timesteps: int | None = None) -> str:
     """``"done"`` (``summary.json`` of an uninterrupted run), ``"partial"`` (the directory exists without one) or
-    ``"todo"``."""
+    ``"todo"``; given the sweep's ``timesteps``, a partial run with a checkpoint short of them is ``"resumable"``."""
     summary = path / "summary.json"
     if summary.is_file():
         try:
             data = json.loads(summary.read_bytes().decode("utf-8"))
         except (OSError, ValueError, RecursionError):  # unreadable or malformed: the run is redone
-            return "partial"
+            data = None
         if isinstance(data, dict) and data.get("interrupted", False) is False:
             return "done"
-        return "partial"
-    return "partial" if path.exists() else "todo"
+    elif not path.exists():
+        return "todo"
+    return "resumable" if timesteps is not None and resumable(path, timesteps) else "partial"
 
 
 def resumable(path: Path, timesteps: int) -> bool:

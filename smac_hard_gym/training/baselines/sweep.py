@@ -17,7 +17,6 @@ from smac_hard_gym.training.baselines.planning import (
     SweepConfig,
     blackbox_command,
     plan,
-    resumable,
     resume_command,
     run_state,
     train_command,
@@ -96,19 +95,17 @@ def run_sweep(config: SweepConfig, *, progress: bool = True, log: Callable[[str]
     out = Path(config.out)
     out.mkdir(parents=True, exist_ok=True)
     runs = plan(config)
-    states = {run: run_state(run.path(out)) for run in runs}
+    states = {run: run_state(run.path(out), config.timesteps) for run in runs}
     log(f"{len(runs)} runs: {sum(s == 'done' for s in states.values())} done, "
-        f"{sum(s == 'partial' for s in states.values())} partial (carried on from a checkpoint, or redone), "
+        f"{sum(s == 'resumable' for s in states.values())} carried on from a checkpoint, "
+        f"{sum(s == 'partial' for s in states.values())} partial (redone), "
         f"{sum(s == 'todo' for s in states.values())} to do")
     jobs: list[tuple[str, list[Step]]] = []
     for run in runs:
         path = run.path(out)
-        command = train_command(run, config)
         if states[run] == "partial":
-            if resumable(path, config.timesteps):  # carried on from its last checkpoint
-                command = resume_command(run, config)
-            else:
-                shutil.rmtree(path)
+            shutil.rmtree(path)
+        command = resume_command(run, config) if states[run] == "resumable" else train_command(run, config)
         train = [] if states[run] == "done" else [(command, path / "train.log")]
         steps = train + _evaluations(run, config)
         if steps:
