@@ -46,6 +46,11 @@ networks are MAPPO's (Yu et al. 2022, "The Surprising Effectiveness of PPO in Co
   when it can fire again, which kiting needs. With the env's ``frame_stack=k`` (:mod:`~smac_hard_gym.smac.frame_stack`)
   a unit's block is its last k observations, newest first, and the actor reads them all (``unit_obs_size`` = k times
   SMAC's); MAPPO's SMAC runs use a recurrent core, or stacked frames (3s_vs_5z).
+- **the unit's own state row** (``own_state_offset``, off by default): the joint controller's ``joint+state``
+  observation carries SMAC's global state, whose ally rows hold each unit's weapon cooldown (energy for a healer),
+  health, shield, type and position from the map's centre. With it the actor also reads unit i's own row, so it
+  knows when it can fire without remembering it. MAPPO's and QMIX's decentralised actors never see the state;
+  a joint controller does, and this is the part of it that is the unit's own.
 - **dead units**: a dead unit's only legal action is no-op, so its masked logits give log-probability 0 and entropy
   0 exactly: it adds nothing to the PPO ratio, the entropy bonus or the actor's gradient (tested). The training pass
   therefore runs the actor on the living units' rows only (a unit is living when an action other than no-op is
@@ -91,9 +96,10 @@ VALUE_NORMS = ("running", "popart", "none")
 
 
 def shared_policy_kwargs(source: Any, obs_mode: str | None = None, frame_stack: int | None = None,
-                         **smac_options: Any) -> dict[str, Any]:
+                         own_state: bool = False, **smac_options: Any) -> dict[str, Any]:
     """``unit_obs_size``, ``state_size``, ``last_action_offset`` and ``frame_stack`` of a joint observation, for
-    ``policy_kwargs``.
+    ``policy_kwargs``; with ``own_state``, also ``own_state_offset`` and ``own_state_size``, the state's ally rows
+    (the actor then reads its unit's own row: needs ``obs_mode="joint+state"``).
 
     ``source``: an env (gymnasium or SB3, vector or single, wrapped or not, with a ``core`` holding SMAC features
     and a ``view`` holding the obs mode and frame stack), a :class:`~smac_hard_gym.smac.features.SideFeatures`, or a
@@ -123,9 +129,15 @@ def shared_policy_kwargs(source: Any, obs_mode: str | None = None, frame_stack: 
     with_state = obs_mode == "joint+state"
     opt = feats.options
     has_actions = with_state and opt.state_last_action and not opt.obs_instead_of_state
-    return {"unit_obs_size": int(size), "state_size": int(feats.state_size) if with_state else 0,
-            "last_action_offset": int(n * size + feats.state_action_offset) if has_actions else None,
-            "frame_stack": frame_stack}
+    kwargs = {"unit_obs_size": int(size), "state_size": int(feats.state_size) if with_state else 0,
+              "last_action_offset": int(n * size + feats.state_action_offset) if has_actions else None,
+              "frame_stack": frame_stack}
+    if own_state:
+        if not with_state or opt.obs_instead_of_state:
+            raise ValueError(f"own_state reads the unit's row of SMAC's global state: it needs obs_mode "
+                             f"'joint+state' with SMAC's state (not obs_instead_of_state), got obs_mode {obs_mode!r}")
+        kwargs.update(own_state_offset=int(n * size), own_state_size=int(feats.ally_state_feats))
+    return kwargs
 
 
 def _find_env(env: Any) -> Any:
@@ -199,8 +211,10 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
     observation size over ``n_agents``, for ``obs_mode="joint"``); ``frame_stack``: the env's ``frame_stack`` the
     blocks come from (saved with the model, so opponents and evaluations rebuild the same observation);
     ``state_size``: the global state's size at the end of the observation (0: none); ``last_action_offset``: where the
-    state's ``n_agents * n_actions`` last-action block starts in the observation (None: no last-action input).
-    ``unit_ids``: append the one-hot unit id. ``critic``: "state", "obs" or "unit". ``value_norm``: "running",
+    state's ``n_agents * n_actions`` last-action block starts in the observation (None: no last-action input);
+    ``own_state_offset``, ``own_state_size``: where the state's ``n_agents`` ally rows of ``own_state_size`` values
+    start in the observation, for an actor that reads its unit's own row (None: it does not). ``unit_ids``: append
+    the one-hot unit id. ``critic``: "state", "obs" or "unit". ``value_norm``: "running",
     "popart" or "none". ``net_arch``: a list (both networks) or ``dict(pi=..., vf=...)``; default ``dict(pi=[64, 64],
     vf=[128, 128])``. ReLU by default, orthogonal initialisation as SB3's.
     """
@@ -210,7 +224,8 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
                  activation_fn: type[nn.Module] = nn.ReLU, *args: Any, unit_obs_size: int | None = None,
                  state_size: int = 0, last_action_offset: int | None = None, unit_ids: bool = True,
                  last_action: bool = True, critic: str | None = None, value_norm: str = "running",
-                 value_norm_beta: float = 0.99999, frame_stack: int = 1, **kwargs: Any) -> None:
+                 value_norm_beta: float = 0.99999, frame_stack: int = 1, own_state_offset: int | None = None,
+                 own_state_size: int = 0, **kwargs: Any) -> None:
         """SB3's policy constructor (spaces, schedule, ``net_arch``, activation and its own keywords passed through),
         then this policy's options by keyword: SB3 saves a policy's constructor keywords with ``model.zip`` and
         rebuilds it from them (``policy_kwargs``), so each option is a flat keyword, hence the long list."""
@@ -232,6 +247,11 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
                                                    and last_action_offset + n * n_actions <= dim):
             raise ValueError(f"last_action_offset {last_action_offset} does not fit a {n}x{n_actions} block inside "
                              f"the state of the {dim}-value observation")
+        if own_state_offset is not None and not (
+                own_state_size > 0 and n * unit_obs_size <= own_state_offset
+                and own_state_offset + n * own_state_size <= dim):
+            raise ValueError(f"own_state_offset {own_state_offset} with own_state_size {own_state_size} does not fit "
+                             f"{n} rows inside the state of the {dim}-value observation")
         frame_stack = check_frame_stack(frame_stack)
         if unit_obs_size % frame_stack:
             raise ValueError(f"unit_obs_size {unit_obs_size} is not frame_stack {frame_stack} frames of one size")
@@ -246,6 +266,8 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         self.n_units, self.n_unit_actions = n, n_actions
         self.unit_obs_size, self.state_size = int(unit_obs_size), int(state_size)
         self.last_action_offset = None if last_action_offset is None else int(last_action_offset)
+        self.own_state_offset = None if own_state_offset is None else int(own_state_offset)
+        self.own_state_size = int(own_state_size) if own_state_offset is not None else 0
         self.unit_ids, self.last_action = bool(unit_ids), bool(last_action)
         self.critic, self.value_norm, self.value_norm_beta = critic, value_norm, float(value_norm_beta)
         if net_arch is None:
@@ -258,6 +280,10 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
     def uses_last_action(self) -> bool:
         return self.last_action and self.last_action_offset is not None
 
+    @property
+    def uses_own_state(self) -> bool:
+        return self.own_state_offset is not None
+
     def _arch(self, key: str) -> list[int]:
         arch = self.net_arch[key] if isinstance(self.net_arch, dict) else self.net_arch
         return [int(h) for h in arch]
@@ -266,8 +292,8 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         n, o, a = self.n_units, self.unit_obs_size, self.n_unit_actions
         self.action_dist = BatchedMaskableMultiCategorical([a] * n)
         pi = self._arch("pi")
-        # The actor's first layer: one weight matrix over [obs_i, onehot(i), onehot(last_action_i)].
-        width = o + (n if self.unit_ids else 0) + (a if self.uses_last_action else 0)
+        # The actor's first layer: one weight matrix over [obs_i, onehot(i), onehot(last_action_i), state row_i].
+        width = o + (n if self.unit_ids else 0) + (a if self.uses_last_action else 0) + self.own_state_size
         first, rest = (pi[0], pi[1:]) if pi else (None, [])
         if first is None:
             raise ValueError("net_arch['pi'] needs at least one hidden layer")
@@ -295,7 +321,8 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         data.update(unit_obs_size=self.unit_obs_size, state_size=self.state_size,
                     last_action_offset=self.last_action_offset, unit_ids=self.unit_ids, last_action=self.last_action,
                     critic=self.critic, value_norm=self.value_norm, value_norm_beta=self.value_norm_beta,
-                    frame_stack=self.frame_stack)
+                    frame_stack=self.frame_stack, own_state_offset=self.own_state_offset,
+                    own_state_size=self.own_state_size)
         return data
 
     # -- the networks ----------------------------------------------------------------------------------------------
@@ -322,7 +349,8 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         return x.as_strided((self.n_units, x.shape[0], width), (width, x.stride(0), 1), x.storage_offset() + start)
 
     def unit_major_logits(self, x: th.Tensor) -> th.Tensor:
-        """(n_units, B, n_actions) logits: the shared actor on every unit's [obs, onehot(id), onehot(last action)].
+        """(n_units, B, n_actions) logits: the shared actor on every unit's [obs, onehot(id), onehot(last action),
+        own state row].
 
         Unit-major, as the batched categorical lays its rows out; the first layer is one batched matmul over the
         units' strided observation blocks (no copy of the 7.7k-wide joint observation on 27m_vs_30m)."""
@@ -338,6 +366,11 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         if self.uses_last_action:
             last = self._by_unit(x, self.last_action_offset, a)
             hidden = th.baddbmm(hidden, last, weight[:, col:col + a].t().expand(n, a, width))
+            col += a
+        if self.uses_own_state:
+            s = self.own_state_size
+            rows = self._by_unit(x, self.own_state_offset, s)
+            hidden = th.baddbmm(hidden, rows, weight[:, col:col + s].t().expand(n, s, width))
         return self.action_net(self.actor_body(self.actor_activation(hidden)))
 
     def unit_rows_logits(self, x: th.Tensor, b: th.Tensor, u: th.Tensor) -> th.Tensor:
@@ -353,6 +386,10 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         hidden = th.addmm(bias, self._by_unit(x, 0, o)[u, b], weight[:, :o].t())
         if self.uses_last_action:
             hidden = th.addmm(hidden, self._by_unit(x, self.last_action_offset, a)[u, b], weight[:, col:col + a].t())
+            col += a
+        if self.uses_own_state:
+            s = self.own_state_size
+            hidden = th.addmm(hidden, self._by_unit(x, self.own_state_offset, s)[u, b], weight[:, col:col + s].t())
         return self.action_net(self.actor_body(self.actor_activation(hidden)))
 
     def unit_logits(self, x: th.Tensor) -> th.Tensor:

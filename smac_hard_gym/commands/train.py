@@ -68,6 +68,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="observation (default: the policy's)")
     parser.add_argument("--frame-stack", type=int, default=None, metavar="K",
                         help="each unit's observation is its last K SMAC observations (default: the policy's)")
+    parser.add_argument("--actor-state", action="store_true",
+                        help="the shared actor also reads its unit's own row of SMAC's global state (weapon "
+                             "cooldown or energy, health, shield, type, position from the map's centre), which "
+                             "the joint+state observation carries; MAPPO's actors do not see it (--policy shared)")
     parser.add_argument("--n-steps", type=int, default=None,
                         help="rollout length per env: num-envs x n-steps samples per update (default: the policy's)")
     parser.add_argument("--batch-size", type=int, default=None,
@@ -185,7 +189,8 @@ def _new_config(args: argparse.Namespace) -> Any:
         config = TrainConfig(
             map_name=args.map, opponent=args.opponent, timesteps=args.timesteps, num_envs=args.num_envs,
             seed=args.seed, out=args.out, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
-            obs_mode=args.obs_mode, frame_stack=args.frame_stack, clip_range=args.clip_range,
+            obs_mode=args.obs_mode, frame_stack=args.frame_stack, actor_state=args.actor_state,
+            clip_range=args.clip_range,
             policy=args.policy, ratio=args.ratio, n_steps=args.n_steps, batch_size=args.batch_size,
             n_epochs=args.epochs,
             learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, ent_coef_final=args.ent_coef_final,

@@ -64,6 +64,8 @@ class TrainConfig:
     # None: the policy's default (POLICY_DEFAULTS), filled in when the config is made
     obs_mode: str | None = None
     frame_stack: int | None = None  # each unit's last k SMAC observations (the envs' frame_stack option)
+    # the shared actor also reads its unit's own row of SMAC's global state (weapon cooldown, health, position...)
+    actor_state: bool = False
     n_steps: int | None = None  # per env and rollout: num_envs * n_steps samples per update
     batch_size: int | None = None
     n_epochs: int | None = None
@@ -112,6 +114,12 @@ class TrainConfig:
                 and isinstance(self.num_envs, (int, np.integer)):
             self.batch_size = max(self.num_envs * self.n_steps // minibatches, 1)  # the rollout in that many parts
         self.frame_stack = check_frame_stack(self.frame_stack)
+        if not isinstance(self.actor_state, bool):
+            raise ValueError(f"actor_state must be True or False, got {self.actor_state!r}")
+        if self.actor_state and (self.policy != "shared" or self.obs_mode != "joint+state"):
+            raise ValueError(f"actor_state has the shared actor read its unit's row of the global state: it needs "
+                             f"policy 'shared' and obs_mode 'joint+state', got policy {self.policy!r} and obs_mode "
+                             f"{self.obs_mode!r}")
         if not isinstance(self.clip_range, (int, float)) or isinstance(self.clip_range, bool) \
                 or not 0 < self.clip_range < 1:
             raise ValueError(f"clip_range must be a number in (0, 1), got {self.clip_range!r}")
@@ -211,7 +219,8 @@ class TrainConfig:
             from smac_hard_gym.wrappers.sb3_shared import shared_policy_kwargs
 
             policy_kwargs = {"net_arch": {"pi": [64, 64], "vf": net_arch},
-                             **shared_policy_kwargs(self.map_name, self.obs_mode, self.frame_stack)}
+                             **shared_policy_kwargs(self.map_name, self.obs_mode, self.frame_stack,
+                                                    own_state=self.actor_state)}
         elif self.frame_stack > 1:
             policy_kwargs["frame_stack"] = self.frame_stack  # recorded with the model for opponents and evaluations
         return {"n_steps": self.n_steps, "batch_size": self.batch_size, "n_epochs": self.n_epochs,
