@@ -339,3 +339,69 @@ def test_shared_policy_learns_3m_against_a_standing_enemy():
 
 
 LEARN_STEPS, RANDOM_MAX, TRAINED_MIN = 40_960, 0.1, 0.5
+
+
+# SMAC's state: each ally's row is health, weapon cooldown (energy for a medivac), x and y from the map's centre, then
+# a shield column for protoss and the unit-type bits of maps with several types (smac_maps.py: marines 0, stalkers 0,
+# MMM 3): 4 values on 3m, 5 on 3s_vs_5z, 7 on MMM2.
+@pytest.mark.parametrize("map_name, frames, row", [("3m", 1, 4), ("3s_vs_5z", 4, 5), ("MMM2", 1, 7)])
+def test_own_state_layout_is_the_states_ally_rows(map_name, frames, row):
+    plain = shared_policy_kwargs(map_name, frame_stack=frames)
+    own = shared_policy_kwargs(map_name, frame_stack=frames, own_state=True)
+    n = {"3m": 3, "3s_vs_5z": 3, "MMM2": 10}[map_name]
+    assert own == {**plain, "own_state_offset": n * plain["unit_obs_size"], "own_state_size": row}
+    with pytest.raises(ValueError, match="own_state .* needs obs_mode 'joint\\+state'.*got obs_mode 'joint'"):
+        shared_policy_kwargs(map_name, "joint", own_state=True)
+
+
+def test_the_actor_reads_its_own_units_state_row():
+    venv = _venv("3m", 4)
+    policy = _model(venv, **shared_policy_kwargs(venv, own_state=True)).policy
+    obs, _ = _observations(venv, steps=10)
+    n, o, row = 3, policy.unit_obs_size, 4
+    start = 3 * o  # the state begins after the three observation blocks, with the allies' rows
+    rows = obs[:, start:start + n * row].view(4, n, row)
+    assert torch.any(rows[:, :, 1] > 0)  # marines that fired in the last steps: their cooldown column is set
+    full = torch.cat([policy.unit_observations(obs), torch.eye(n).expand(4, n, n), policy.unit_last_actions(obs),
+                      rows], 2)
+    assert policy.actor_in.in_features == full.shape[2]
+    with torch.no_grad():
+        logits = policy.unit_logits(obs)
+        torch.testing.assert_close(logits, policy.action_net(policy.actor_body(torch.relu(policy.actor_in(full)))))
+        # the training pass's gathered rows are the same logits
+        b, u = torch.tensor([0, 1, 3, 2]), torch.tensor([2, 0, 1, 1])
+        torch.testing.assert_close(policy.unit_rows_logits(obs, b, u), logits[b, u])
+        # changing marine 1's cooldown in the state changes marine 1's logits only
+        changed = obs.clone()
+        changed[:, start + row + 1] += 0.5
+        after = policy.unit_logits(changed)
+    assert not torch.allclose(after[:, 1], logits[:, 1])
+    torch.testing.assert_close(after[:, [0, 2]], logits[:, [0, 2]])
+    venv.close()
+
+
+def test_an_own_state_model_saves_loads_and_plays_as_an_opponent(tmp_path):
+    from smac_hard_gym.opponents.policy import PolicyScript
+
+    venv = _venv("3m", 2)
+    model = _model(venv, **shared_policy_kwargs(venv, own_state=True))
+    model.save(tmp_path / "own.zip")
+    loaded = MaskablePPO.load(tmp_path / "own.zip", device="cpu")
+    assert (loaded.policy.own_state_offset, loaded.policy.own_state_size) == (model.policy.own_state_offset, 4)
+    obs, _ = _observations(venv, seed=3)
+    with torch.no_grad():
+        assert torch.equal(loaded.policy.unit_logits(obs), model.policy.unit_logits(obs))
+    venv.close()
+    env = NativeVectorEnv("3m", 2, autoreset_mode="SameStep", opponent=PolicyScript.load(tmp_path / "own.zip"))
+    env.reset(seed=0)
+    for _ in range(10):
+        masks = env.action_masks().reshape(2, 3, 9)
+        env.step(masks.argmax(axis=2))
+    env.close()
+
+
+def test_own_state_rows_that_do_not_fit_are_refused():
+    obs_space = spaces.Box(-1.0, 1.0, (100,), np.float32)
+    with pytest.raises(ValueError, match="own_state_offset 95 with own_state_size 4 does not fit 3 rows"):
+        SharedUnitPolicy(obs_space, spaces.MultiDiscrete([9] * 3), lambda _: 1e-3, unit_obs_size=30, state_size=10,
+                         own_state_offset=95, own_state_size=4)

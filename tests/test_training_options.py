@@ -244,3 +244,18 @@ def test_every_optimiser_step_clips_the_gradient_at_max_grad_norm(tmp_path, monk
     expected = 0.5 if norm is None else norm
     assert clips == [expected] * 4
     assert json.loads((out / "config.json").read_text())["max_grad_norm"] == expected
+
+
+def test_actor_state_needs_the_shared_policy_and_the_state():
+    assert TrainConfig(out="x").actor_state is False
+    config = TrainConfig(map_name="3s_vs_5z", out="x", actor_state=True)
+    assert config.ppo_kwargs()["policy_kwargs"]["own_state_size"] == 5  # a stalker's row: health, cooldown, x, y, shield
+    with pytest.raises(ValueError, match="actor_state .* needs policy 'shared' and obs_mode 'joint\\+state', got "
+                                         "policy 'joint'"):
+        TrainConfig(out="x", policy="joint", actor_state=True)
+    with pytest.raises(ValueError, match="got policy 'shared' and obs_mode 'joint'"):
+        TrainConfig(out="x", obs_mode="joint", actor_state=True)
+    with pytest.raises(ValueError, match="actor_state must be True or False, got 1"):
+        TrainConfig(out="x", actor_state=1)
+    with pytest.raises(SystemExit, match="actor_state"):
+        main(["train", "--map", "3m", "--policy", "joint", "--actor-state", "--out", "x"])
