@@ -249,7 +249,8 @@ def test_every_optimiser_step_clips_the_gradient_at_max_grad_norm(tmp_path, monk
 def test_actor_state_needs_the_shared_policy_and_the_state():
     assert TrainConfig(out="x").actor_state is False
     config = TrainConfig(map_name="3s_vs_5z", out="x", actor_state=True)
-    assert config.ppo_kwargs()["policy_kwargs"]["own_state_size"] == 5  # a stalker's row: health, cooldown, x, y, shield
+    # a stalker's row: health, cooldown, x, y, shield
+    assert config.ppo_kwargs()["policy_kwargs"]["own_state_size"] == 5
     with pytest.raises(ValueError, match="actor_state .* needs policy 'shared' and obs_mode 'joint\\+state', got "
                                          "policy 'joint'"):
         TrainConfig(out="x", policy="joint", actor_state=True)
