@@ -194,6 +194,24 @@ def play(env: StarCraft2Env, policy: Policy, seed: int, eps: float, rng: np.rand
     return out
 
 
+def trace(env: StarCraft2Env, policy: Policy, seed: int) -> None:
+    """Play one greedy episode and print every env step: the learner's actions, then each unit's position, health,
+    order (the engine's ``ORDER_*`` code), target and the unit it shot during the step (slots as in ``Units``)."""
+    env.reset(seed=seed)
+    units = read_units(env)
+    done, t, info = False, 0, {}
+    while not done:
+        actions = policy(env, units, t)
+        _, done, info = env.step([int(a) for a in actions])
+        units, order = read_units(env), env._core.backend.state.order[0]
+        cells = [f"{k}: dead" if not units.alive[k] else
+                 f"{k}: ({units.x[k]:.1f}, {units.y[k]:.1f}) hp {units.health[k]:.0f} order {order[k]} "
+                 f"target {units.target[k]} shot {units.fired_at[k]}" for k in range(len(units.x))]
+        print(f"step {t} actions {' '.join(map(str, actions))} | " + " | ".join(cells))
+        t += 1
+    print(f"won: {bool(info.get('battle_won', False))}")
+
+
 def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
     def mean(key: str) -> float:
         return float(np.mean([e[key] for e in episodes]))
@@ -267,6 +285,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed0", type=int, default=1000, help="episode k is reset with seed seed0 + k (default 1000)")
     p.add_argument("--json", type=Path, help="write the results here")
     p.add_argument("--key", help="store the results under this key (A/B) of --json's object, keeping the others")
+    p.add_argument("--trace", type=int, metavar="SEED",
+                   help="instead of measuring, play the episode reset with SEED and print every step's units")
     a = p.parse_args(argv)
 
     run = a.run_dir.expanduser().resolve() if a.run_dir else None
@@ -286,6 +306,9 @@ def main(argv: list[str] | None = None) -> int:
             p.error("give --run-dir or --checkpoint")
         policy = qmix_policy(a.epymarl.expanduser(), Path(checkpoint), cfg, env)
 
+    if a.trace is not None:
+        trace(env, policy, a.trace)
+        return 0
     rng = np.random.default_rng(a.seed0)
     results = summarise([play(env, policy, a.seed0 + k, a.eps, rng) for k in range(a.episodes)])
 
