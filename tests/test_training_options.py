@@ -1,6 +1,7 @@
 """`train`'s PPO options beyond SB3's own: `--reward` (which SMAC reward the training battles give; the evaluation
 battles keep SMAC's default) and `--ent-coef-final` (the entropy coefficient falls linearly over the run)."""
 
+import argparse
 import json
 
 import numpy as np
@@ -9,6 +10,7 @@ import torch
 from sb3_contrib import MaskablePPO
 
 from smac_hard_gym.cli import main
+from smac_hard_gym.commands.train import add_arguments
 from smac_hard_gym.envs import vector
 from smac_hard_gym.training import TrainConfig
 
@@ -247,7 +249,11 @@ def test_every_optimiser_step_clips_the_gradient_at_max_grad_norm(tmp_path, monk
 
 
 def test_actor_state_needs_the_shared_policy_and_the_state():
-    assert TrainConfig(out="x").actor_state is False
+    # on by default where the shared actor has a state to read it from, off otherwise
+    assert TrainConfig(out="x").actor_state is True
+    assert TrainConfig(out="x", policy="joint").actor_state is False
+    assert TrainConfig(out="x", obs_mode="joint").actor_state is False
+    assert TrainConfig(out="x", actor_state=False).ppo_kwargs()["policy_kwargs"].get("own_state_offset") is None
     config = TrainConfig(map_name="3s_vs_5z", out="x", actor_state=True)
     # a stalker's row: health, cooldown, x, y, shield
     assert config.ppo_kwargs()["policy_kwargs"]["own_state_size"] == 5
@@ -260,3 +266,16 @@ def test_actor_state_needs_the_shared_policy_and_the_state():
         TrainConfig(out="x", actor_state=1)
     with pytest.raises(SystemExit, match="actor_state"):
         main(["train", "--map", "3m", "--policy", "joint", "--actor-state", "--out", "x"])
+
+
+def test_actor_state_on_the_command_line_and_in_old_run_configs(tmp_path):
+    from smac_hard_gym.training.run_files import load_run_config
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert parser.parse_args([]).actor_state is None
+    assert parser.parse_args(["--no-actor-state"]).actor_state is False
+    assert parser.parse_args(["--actor-state"]).actor_state is True
+    # a shared run saved before the option existed trained without the state row
+    (tmp_path / "config.json").write_text(json.dumps({"map_name": "3m", "policy": "shared", "obs_mode": "joint+state"}))
+    assert load_run_config(tmp_path / "model.zip").actor_state is False

@@ -55,10 +55,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="env steps between evaluations (default: a tenth of --timesteps)")
     parser.add_argument("--eval-episodes", type=int, default=32, help="episodes per evaluation (default 32)")
     parser.add_argument("--policy", default="shared", choices=POLICIES,
-                        help="shared (default): one 64x64 actor shared by the units (with unit ids, last actions and "
-                             "stacked frames), a critic on the global state sized by --net-arch, value normalisation "
-                             "(MAPPO; wrappers/sb3_shared.py); joint: one MLP over all units (the first sweep's "
-                             "policy; docs/training_results.md compares them). The options below "
+                        help="shared (default): one 64x64 actor shared by the units (with unit ids, last actions, "
+                             "stacked frames and its unit's state row), a critic on the global state sized by "
+                             "--net-arch, value normalisation (MAPPO; wrappers/sb3_shared.py); joint: one MLP over all "
+                             "units (the first sweep's policy; docs/training_results.md compares them). The options "
+                             "below "
                              f"marked 'the policy's' default to {_policy_defaults()}")
     parser.add_argument("--ratio", default="joint", choices=RATIOS,
                         help="what PPO's clip applies to: joint: the whole action's probability ratio, as "
@@ -68,10 +69,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="observation (default: the policy's)")
     parser.add_argument("--frame-stack", type=int, default=None, metavar="K",
                         help="each unit's observation is its last K SMAC observations (default: the policy's)")
-    parser.add_argument("--actor-state", action="store_true",
-                        help="the shared actor also reads its unit's own row of SMAC's global state (weapon "
-                             "cooldown or energy, health, shield, type, position from the map's centre), which "
-                             "the joint+state observation carries; MAPPO's actors do not see it (--policy shared)")
+    parser.add_argument("--actor-state", action=argparse.BooleanOptionalAction, default=None,
+                        help="whether the shared actor also reads its unit's own row of SMAC's global state (weapon "
+                             "cooldown or energy, health, shield, type, position from the map's centre), which the "
+                             "joint+state observation carries; MAPPO's actors do not see it (default: on for --policy "
+                             "shared with --obs-mode joint+state, off otherwise)")
     parser.add_argument("--n-steps", type=int, default=None,
                         help="rollout length per env: num-envs x n-steps samples per update (default: the policy's)")
     parser.add_argument("--batch-size", type=int, default=None,

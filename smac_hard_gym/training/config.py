@@ -64,8 +64,9 @@ class TrainConfig:
     # None: the policy's default (POLICY_DEFAULTS), filled in when the config is made
     obs_mode: str | None = None
     frame_stack: int | None = None  # each unit's last k SMAC observations (the envs' frame_stack option)
-    # the shared actor also reads its unit's own row of SMAC's global state (weapon cooldown, health, position...)
-    actor_state: bool = False
+    # the shared actor also reads its unit's own row of SMAC's global state (weapon cooldown, health, position...);
+    # None: the shared policy's default, on where the observation carries the state (obs_mode "joint+state")
+    actor_state: bool | None = None
     n_steps: int | None = None  # per env and rollout: num_envs * n_steps samples per update
     batch_size: int | None = None
     n_epochs: int | None = None
@@ -114,6 +115,8 @@ class TrainConfig:
                 and isinstance(self.num_envs, (int, np.integer)):
             self.batch_size = max(self.num_envs * self.n_steps // minibatches, 1)  # the rollout in that many parts
         self.frame_stack = check_frame_stack(self.frame_stack)
+        if self.actor_state is None:
+            self.actor_state = self.policy == "shared" and self.obs_mode == "joint+state"
         if not isinstance(self.actor_state, bool):
             raise ValueError(f"actor_state must be True or False, got {self.actor_state!r}")
         if self.actor_state and (self.policy != "shared" or self.obs_mode != "joint+state"):

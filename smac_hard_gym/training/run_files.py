@@ -106,6 +106,8 @@ def load_run_config(model_path: str | Path) -> TrainConfig | None:
     data.setdefault("frame_stack", 1)
     # Runs saved before `train --policy` existed trained the joint MLP, the default of the time.
     data.setdefault("policy", "joint")
+    # Runs saved before the shared actor could read its unit's state row trained without it.
+    data.setdefault("actor_state", False)
     known = {f.name for f in fields(TrainConfig)}
     for key in ("map_name", "opponent", "obs_mode", "policy", "out", "tensorboard", "league_weighting"):
         if key in data and not isinstance(data[key], str):
