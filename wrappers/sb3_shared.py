@@ -46,11 +46,12 @@ networks are MAPPO's (Yu et al. 2022, "The Surprising Effectiveness of PPO in Co
   when it can fire again, which kiting needs. With the env's ``frame_stack=k`` (:mod:`~smac_hard_gym.smac.frame_stack`)
   a unit's block is its last k observations, newest first, and the actor reads them all (``unit_obs_size`` = k times
   SMAC's); MAPPO's SMAC runs use a recurrent core, or stacked frames (3s_vs_5z).
-- **the unit's own state row** (``own_state_offset``, off by default): the joint controller's ``joint+state``
-  observation carries SMAC's global state, whose ally rows hold each unit's weapon cooldown (energy for a healer),
-  health, shield, type and position from the map's centre. With it the actor also reads unit i's own row, so it
-  knows when it can fire without remembering it. MAPPO's and QMIX's decentralised actors never see the state;
-  a joint controller does, and this is the part of it that is the unit's own.
+- **the unit's own state row** (``own_state_offset``; :func:`shared_policy_kwargs` with ``own_state=True``, which
+  ``smac-hard-gym train`` passes unless ``--no-actor-state``): the joint controller's ``joint+state`` observation
+  carries SMAC's global state, whose ally rows hold each unit's weapon cooldown (energy for a healer), health,
+  shield, type and position from the map's centre. With it the actor also reads unit i's own row, so it knows when
+  it can fire without remembering it. MAPPO's and QMIX's decentralised actors never see the state; a joint
+  controller does, and this is the part of it that is the unit's own.
 - **dead units**: a dead unit's only legal action is no-op, so its masked logits give log-probability 0 and entropy
   0 exactly: it adds nothing to the PPO ratio, the entropy bonus or the actor's gradient (tested). The training pass
   therefore runs the actor on the living units' rows only (a unit is living when an action other than no-op is
