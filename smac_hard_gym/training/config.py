@@ -104,8 +104,10 @@ class TrainConfig:
         if self.ratio == "unit" and self.policy != "shared":
             raise ValueError("ratio 'unit' clips each unit's probability ratio, which only the shared policy gives "
                              "(policy 'shared'); the joint MLP trains with ratio 'joint'")
+        if self.actor_state is None:  # on where the shared actor has the state to read its row from
+            self.actor_state = self.policy == "shared" and (self.obs_mode or defaults["obs_mode"]) == "joint+state"
         if self.policy == "shared":
-            per_map = shared_map_defaults(self.map_name, self.ratio)
+            per_map = shared_map_defaults(self.map_name, self.ratio, self.actor_state is True)
             minibatches = per_map.pop("minibatches")
             defaults.update(per_map)
         for name, value in defaults.items():
@@ -115,8 +117,6 @@ class TrainConfig:
                 and isinstance(self.num_envs, (int, np.integer)):
             self.batch_size = max(self.num_envs * self.n_steps // minibatches, 1)  # the rollout in that many parts
         self.frame_stack = check_frame_stack(self.frame_stack)
-        if self.actor_state is None:
-            self.actor_state = self.policy == "shared" and self.obs_mode == "joint+state"
         if not isinstance(self.actor_state, bool):
             raise ValueError(f"actor_state must be True or False, got {self.actor_state!r}")
         if self.actor_state and (self.policy != "shared" or self.obs_mode != "joint+state"):
