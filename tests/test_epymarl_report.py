@@ -3,21 +3,16 @@ engine left out, several folders in one report, and Spearman's correlation with 
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 from pathlib import Path
 
 import pytest
-
-REPORT = Path(__file__).resolve().parents[1] / "benchmarks" / "epymarl" / "report.py"
+from script_helpers import load_benchmark
 
 
 def _report():
-    spec = importlib.util.spec_from_file_location("epymarl_report", REPORT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("epymarl/report.py", "epymarl_report")
 
 
 def _run(folder: Path, map_name: str, seed_dir: str, wins: list[float], done: bool = True) -> None:

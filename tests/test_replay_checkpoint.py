@@ -2,19 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
-from pathlib import Path
 
-REPLAY = Path(__file__).resolve().parents[1] / "benchmarks" / "epymarl" / "replay_checkpoint.py"
+from script_helpers import load_benchmark
 
 
 def _replay():
-    spec = importlib.util.spec_from_file_location("replay_checkpoint", REPLAY)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("epymarl/replay_checkpoint.py", "replay_checkpoint")
 
 
 def test_trace_prints_every_step_of_one_game(tmp_path, capsys):
