@@ -59,8 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "stacked frames and its unit's state row), a critic on the global state sized by "
                              "--net-arch, value normalisation (MAPPO; wrappers/sb3_shared.py); joint: one MLP over all "
                              "units (the first sweep's policy; docs/training_results.md compares them). The options "
-                             "below "
-                             f"marked 'the policy's' default to {_policy_defaults()}")
+                             f"below marked 'the policy's' default to {_policy_defaults()}")
     parser.add_argument("--ratio", default="joint", choices=RATIOS,
                         help="what PPO's clip applies to: joint: the whole action's probability ratio, as "
                              "MaskablePPO has it (default); unit: each unit's ratio, MAPPO's loss, with MAPPO's clip "
