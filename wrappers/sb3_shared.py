@@ -285,6 +285,12 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
     def uses_own_state(self) -> bool:
         return self.own_state_offset is not None
 
+    def _state_blocks(self) -> list[tuple[int, int]]:
+        """(offset, width) of the per-unit blocks of the state the actor reads after a unit's observation and id, in
+        its first layer's column order: the unit's last action (one-hot), then its own state row."""
+        blocks = [(self.last_action_offset, self.n_unit_actions)] if self.uses_last_action else []
+        return blocks + ([(self.own_state_offset, self.own_state_size)] if self.uses_own_state else [])
+
     def _arch(self, key: str) -> list[int]:
         arch = self.net_arch[key] if isinstance(self.net_arch, dict) else self.net_arch
         return [int(h) for h in arch]
@@ -294,7 +300,7 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
         self.action_dist = BatchedMaskableMultiCategorical([a] * n)
         pi = self._arch("pi")
         # The actor's first layer: one weight matrix over [obs_i, onehot(i), onehot(last_action_i), state row_i].
-        width = o + (n if self.unit_ids else 0) + (a if self.uses_last_action else 0) + self.own_state_size
+        width = o + (n if self.unit_ids else 0) + sum(w for _, w in self._state_blocks())
         first, rest = (pi[0], pi[1:]) if pi else (None, [])
         if first is None:
             raise ValueError("net_arch['pi'] needs at least one hidden layer")
@@ -355,7 +361,7 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
 
         Unit-major, as the batched categorical lays its rows out; the first layer is one batched matmul over the
         units' strided observation blocks (no copy of the 7.7k-wide joint observation on 27m_vs_30m)."""
-        o, n, a = self.unit_obs_size, self.n_units, self.n_unit_actions
+        o, n = self.unit_obs_size, self.n_units
         weight = self.actor_in.weight
         width = weight.shape[0]
         bias = self.actor_in.bias.view(1, 1, width)
@@ -364,20 +370,15 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
             bias = bias + weight[:, col:col + n].t().unsqueeze(1)
             col += n
         hidden = th.baddbmm(bias, self._by_unit(x, 0, o), weight[:, :o].t().expand(n, o, width))
-        if self.uses_last_action:
-            last = self._by_unit(x, self.last_action_offset, a)
-            hidden = th.baddbmm(hidden, last, weight[:, col:col + a].t().expand(n, a, width))
-            col += a
-        if self.uses_own_state:
-            s = self.own_state_size
-            rows = self._by_unit(x, self.own_state_offset, s)
-            hidden = th.baddbmm(hidden, rows, weight[:, col:col + s].t().expand(n, s, width))
+        for start, w in self._state_blocks():
+            hidden = th.baddbmm(hidden, self._by_unit(x, start, w), weight[:, col:col + w].t().expand(n, w, width))
+            col += w
         return self.action_net(self.actor_body(self.actor_activation(hidden)))
 
     def unit_rows_logits(self, x: th.Tensor, b: th.Tensor, u: th.Tensor) -> th.Tensor:
         """(k, n_actions) logits of unit ``u[i]`` in battle ``b[i]``: :meth:`unit_major_logits`'s rows, computed for
         those units only (their observation rows are gathered, the rest never enter the network)."""
-        o, n, a = self.unit_obs_size, self.n_units, self.n_unit_actions
+        o, n = self.unit_obs_size, self.n_units
         weight = self.actor_in.weight
         bias = self.actor_in.bias
         col = o
@@ -385,12 +386,9 @@ class SharedUnitPolicy(MaskableActorCriticPolicy):
             bias = bias + weight[:, col:col + n].t()[u]  # (k, width): unit u's id column
             col += n
         hidden = th.addmm(bias, self._by_unit(x, 0, o)[u, b], weight[:, :o].t())
-        if self.uses_last_action:
-            hidden = th.addmm(hidden, self._by_unit(x, self.last_action_offset, a)[u, b], weight[:, col:col + a].t())
-            col += a
-        if self.uses_own_state:
-            s = self.own_state_size
-            hidden = th.addmm(hidden, self._by_unit(x, self.own_state_offset, s)[u, b], weight[:, col:col + s].t())
+        for start, w in self._state_blocks():
+            hidden = th.addmm(hidden, self._by_unit(x, start, w)[u, b], weight[:, col:col + w].t())
+            col += w
         return self.action_net(self.actor_body(self.actor_activation(hidden)))
 
     def unit_logits(self, x: th.Tensor) -> th.Tensor:
