@@ -172,15 +172,15 @@ def test_the_shared_policy_on_3m_takes_the_measured_quick_start_settings():
     assert TrainConfig(map_name="8m", policy="shared", num_envs=64).n_epochs == 15  # MAPPO's, unmeasured
 
 
-def test_train_defaults_to_the_shared_policy():
-    # the CLI's default and TrainConfig's are two literals: both must say the same
-    import argparse
-
-    from smac_hard_gym.commands.train import add_arguments
-
+def _train_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    assert parser.parse_args([]).policy == TrainConfig(out="x").policy == "shared"
+    return parser
+
+
+def test_train_defaults_to_the_shared_policy():
+    # the CLI's default and TrainConfig's are two literals: both must say the same
+    assert _train_parser().parse_args([]).policy == TrainConfig(out="x").policy == "shared"
 
 
 def test_mappos_table_names_every_map_with_a_script_and_only_known_maps():
@@ -276,8 +276,7 @@ def test_actor_state_needs_the_shared_policy_and_the_state():
 def test_actor_state_on_the_command_line_and_in_old_run_configs(tmp_path):
     from smac_hard_gym.training.run_files import load_run_config
 
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
+    parser = _train_parser()
     assert parser.parse_args([]).actor_state is None
     assert parser.parse_args(["--no-actor-state"]).actor_state is False
     assert parser.parse_args(["--actor-state"]).actor_state is True
