@@ -172,6 +172,18 @@ def test_the_shared_policy_on_3m_takes_the_measured_quick_start_settings():
     assert TrainConfig(map_name="8m", policy="shared", num_envs=64).n_epochs == 15  # MAPPO's, unmeasured
 
 
+def test_the_shared_policy_on_6h_vs_8z_takes_the_joint_mlps_ppo_settings():
+    # MAPPO's 6h_vs_8z script: 5 epochs of one minibatch, no memory; measured instead (docs/training_results.md,
+    # "6h_vs_8z on the engine now"): 64 battles x 32 steps in 10 epochs of minibatches of 512, clip 0.2, one frame
+    config = TrainConfig(map_name="6h_vs_8z", policy="shared", num_envs=64)
+    assert (config.n_steps, config.n_epochs, config.batch_size, config.clip_range, config.frame_stack) \
+        == (32, 10, 512, 0.2, 1)
+    joint = TrainConfig(map_name="6h_vs_8z", policy="joint", num_envs=64)
+    assert (joint.n_steps, joint.n_epochs, joint.batch_size, joint.clip_range) == (32, 10, 512, 0.2)
+    assert TrainConfig(map_name="6h_vs_8z", policy="shared", n_steps=50).batch_size == 64 * 50 // 4  # still 4 parts
+    assert TrainConfig(map_name="corridor", policy="shared", num_envs=64).n_steps == 50  # MAPPO's, as the others
+
+
 def _train_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser()
     add_arguments(parser)

@@ -31,14 +31,14 @@ def _finite_number(value: Any) -> bool:
 
 
 # What each policy trains with unless told otherwise (train's defaults; docs/training_results.md measures them). The
-# joint MLP keeps the first sweep's PPO settings. The shared policy takes MAPPO's for SMAC: 64 battles x 50 steps
-# (MAPPO's 8 threads x 400), and per map the epochs, minibatches and memory of MAPPO's launch script for that map
-# (mappo_settings.py), with a clip on the joint ratio measured for those epochs; batch_size None: the rollout split
-# into the map's minibatches.
+# joint MLP keeps the first sweep's PPO settings. The shared policy takes MAPPO's for SMAC per map
+# (mappo_settings.py): 64 battles x 50 steps (MAPPO's 8 threads x 400), the epochs, minibatches and memory of MAPPO's
+# launch script for that map, a clip on the joint ratio measured for those epochs, and measured settings where they
+# differ; batch_size None: the rollout split into the map's minibatches.
 POLICY_DEFAULTS: dict[str, dict[str, Any]] = {
     "joint": {"obs_mode": "joint", "frame_stack": 1, "n_steps": 32, "batch_size": 512, "n_epochs": 10,
               "clip_range": 0.2},
-    "shared": {"obs_mode": "joint+state", "n_steps": 50, "batch_size": None},
+    "shared": {"obs_mode": "joint+state", "batch_size": None},
 }
 
 

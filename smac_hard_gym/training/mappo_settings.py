@@ -39,7 +39,11 @@ by 100k, where 10 epochs of 4 minibatches at 0.2 win 0.63 and 0.47 of them (the 
 against SMAC's opponent 1.00 at 1M steps on seeds 0 and 1 (docs/training_results.md, "Which policy ``train`` uses
 by default"). With the actor reading its unit's state row (``actor_state``, the shared policy's default), which holds
 the weapon's cooldown, 3s_vs_5z takes one frame: at 2M steps one frame won 0.56, 0.97, 1.00, 1.00 and 0.41 (seeds
-0-4) where four won 1.00, 0.00, 0.94, 0.00 and 0.00 on the engine with the wind-up and its range slop.
+0-4) where four won 1.00, 0.00, 0.94, 0.00 and 0.00 on the engine with the wind-up and its range slop. On 6h_vs_8z
+MAPPO's settings (5 epochs of one 3,200-sample minibatch) win nothing in 1M steps on the engine now, where EPyMARL's
+QMIX learns the map (0.38 at 0.5M steps, its checkpoint 0.93 in replays): the joint MLP's PPO settings (64 battles x
+32 steps in 10 epochs of 4 minibatches, clip 0.2) won 0.91 and 1.00 at 1M steps (seeds 0, 1), so 6h_vs_8z takes
+them.
 """
 
 from __future__ import annotations
@@ -49,8 +53,9 @@ from typing import Any
 __all__ = ["MAPPO_SMAC", "MAPPO_DEFAULT", "MEASURED", "FRAMES_FOR_MEMORY", "CLIP_FOR_EPOCHS", "RATIOS",
            "shared_map_defaults"]
 
-# MAPPO's config.py defaults (a map without a script)
-MAPPO_DEFAULT: dict[str, Any] = {"epochs": 15, "minibatches": 1, "memory": "gru", "clip": 0.2}
+# MAPPO's config.py defaults (a map without a script); n_steps: 64 battles x 50 steps per rollout stand for its 8
+# threads x 400
+MAPPO_DEFAULT: dict[str, Any] = {"epochs": 15, "minibatches": 1, "memory": "gru", "clip": 0.2, "n_steps": 50}
 
 # what differs from MAPPO_DEFAULT in each map's script
 MAPPO_SMAC: dict[str, dict[str, Any]] = {
@@ -71,12 +76,15 @@ MAPPO_SMAC: dict[str, dict[str, Any]] = {
 # 5-epoch maps (0.05 learned it late); on 3m, the quick start's map, 10 epochs of 4 minibatches at 0.2: MAPPO's 15
 # small passes learn it too slowly for a short run
 # "memory_with_state": the memory when the actor reads its unit's state row, which holds the weapon's cooldown: on
-# 3s_vs_5z one frame then won on each of five seeds (0.41-1.00 at 2M) where four frames won on two of five
+# 3s_vs_5z one frame then won on each of five seeds (0.41-1.00 at 2M) where four frames won on two of five;
+# 6h_vs_8z takes the joint MLP's PPO settings (32-step rollouts, 10 epochs of 4 minibatches of 512, clip 0.2), which
+# learn the map as EPyMARL's QMIX does on this engine, where MAPPO's win nothing in 1M steps
 MEASURED: dict[str, dict[str, Any]] = {"27m_vs_30m": {"memory": "none"}, "25m": {"memory": "none"},
                                        "3s_vs_5z": {"joint_clip": 0.15, "memory_with_state": "none"},
                                        "3s_vs_4z": {"joint_clip": 0.15},
                                        "8m_vs_9m": {"joint_clip": 0.2},
-                                       "3m": {"epochs": 10, "minibatches": 4, "joint_clip": 0.2}}
+                                       "3m": {"epochs": 10, "minibatches": 4, "joint_clip": 0.2},
+                                       "6h_vs_8z": {"n_steps": 32, "epochs": 10, "minibatches": 4, "joint_clip": 0.2}}
 
 FRAMES_FOR_MEMORY = {"gru": 4, "frames": 4, "none": 1}
 CLIP_FOR_EPOCHS = {15: 0.05, 10: 0.2, 5: 0.2}  # the joint ratio's clip by MAPPO's epochs for the map (measured)
@@ -86,13 +94,14 @@ RATIOS = ("joint", "unit")  # what PPO clips: SB3's joint ratio, or each unit's 
 
 
 def shared_map_defaults(map_name: str, ratio: str = "joint", actor_state: bool = False) -> dict[str, Any]:
-    """The shared policy's TrainConfig defaults for ``map_name``: ``n_epochs``, ``frame_stack`` (with
-    ``actor_state``, for an actor that reads its unit's state row), ``clip_range`` (for the ``ratio`` PPO clips) and
-    ``minibatches`` (the rollout is split into that many minibatches)."""
+    """The shared policy's TrainConfig defaults for ``map_name``: ``n_steps`` (per battle and rollout, for 64
+    battles), ``n_epochs``, ``frame_stack`` (with ``actor_state``, for an actor that reads its unit's state row),
+    ``clip_range`` (for the ``ratio`` PPO clips) and ``minibatches`` (the rollout is split into that many
+    minibatches)."""
     if ratio not in RATIOS:
         raise ValueError(f"ratio must be one of {RATIOS}, got {ratio!r}")
     settings = {**MAPPO_DEFAULT, **MAPPO_SMAC.get(map_name, {}), **MEASURED.get(map_name, {})}
     clip = settings["clip"] if ratio == "unit" else settings.get("joint_clip", CLIP_FOR_EPOCHS[settings["epochs"]])
     memory = settings.get("memory_with_state", settings["memory"]) if actor_state else settings["memory"]
-    return {"n_epochs": settings["epochs"], "frame_stack": FRAMES_FOR_MEMORY[memory],
+    return {"n_steps": settings["n_steps"], "n_epochs": settings["epochs"], "frame_stack": FRAMES_FOR_MEMORY[memory],
             "clip_range": clip, "minibatches": settings["minibatches"]}
