@@ -1,7 +1,7 @@
 """Where the engine's step spends its time: perf samples of ``step_battles`` attributed to the kernel's phases.
 
-Runs the engine alone (``BattleEngine(map, battles)``, random move and attack orders, as ``ab_speed.py``'s
-``engine<N>`` measurement) on one numba thread under ``perf record``, in a child process that compiles the kernels
+Runs ``ab_speed.py``'s ``engine<N>`` measurement (``BattleEngine(map, battles)`` alone, random move and attack
+orders) on one numba thread under ``perf record``, in a child process that compiles the kernels
 afresh with line tables (``NUMBA_DEBUGINFO``, inlining kept as in a normal build) into a temporary numba cache. Each
 sample inside the compiled ``step_battles`` is mapped to its source line with ``addr2line`` and counted under the
 kernel function whose line it is, outermost first: the phases (``_movement``, ``_separation``, ``_attacks``, ...)
@@ -26,52 +26,36 @@ import sys
 import tempfile
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ab_speed import CHILD as ENGINE_MEASUREMENT  # noqa: E402  (the engine workload ab_speed.py times)
+
 KERNELS = Path(__file__).resolve().parents[1] / "smac_hard_gym" / "engine" / "kernels.py"
 
-# Run in the child under perf: compile with line tables, note where step_battles landed, then step.
-CHILD = r'''
-import json, sys
+# The child under perf: compile with line tables (without the noinline that debug info asks numba for, so the build
+# inlines as a normal one), run ab_speed.py's engine measurement, then note where step_battles landed.
+PRELUDE = r'''
 import numba.core.lowering as lowering
 _pre_lower = lowering.Lower.pre_lower
-def pre_lower(self):  # debug info asks numba for noinline; keep the normal build's inlining
+def pre_lower(self):
     _pre_lower(self)
     self.builder.function.attributes.discard("noinline")
 lowering.Lower.pre_lower = pre_lower
-import numpy as np
-from smac_hard_gym.engine import CMD_ATTACK, CMD_MOVE, BattleEngine, kernels
-map_name, battles, steps, out = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
-rng = np.random.default_rng(0)
-engine = BattleEngine(map_name, batch_size=battles)
-n = engine.n_units
-limit = engine.spec.episode_limit * engine.step_mul
-kinds = rng.integers(0, 2, size=(16, battles, n))
-targets = rng.integers(0, n, size=(16, battles, n))
-offsets = rng.uniform(-6, 6, size=(16, 2, battles, n))
-def run(k):
-    cmd, st = engine.commands, engine.state
-    for i in range(k):
-        j = i % 16
-        cmd.kind[:] = np.where(kinds[j] == 0, CMD_ATTACK, CMD_MOVE)
-        cmd.target[:] = targets[j]
-        cmd.x[:] = st.x + offsets[j, 0]
-        cmd.y[:] = st.y + offsets[j, 1]
-        engine.step()
-        red, blue = engine.alive_counts()
-        done = (red == 0) | (blue == 0) | (st.loop >= limit)
-        if done.any():
-            engine.reset(done)
-run(20)
+'''
+EPILOGUE = r'''
+import json
+from smac_hard_gym.engine import kernels
+out = sys.argv[5]
 functions = []
 for k, cres in enumerate(kernels.step_battles.overloads.values()):
     obj = f"{out}/step_battles{k}.o"
     with open(obj, "wb") as f:
         f.write(cres.library._get_compiled_object())
-    functions.append({"object": obj, "symbol": cres.fndesc.llvm_func_name,
-                      "address": cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)})
+    name = cres.fndesc.llvm_func_name
+    functions.append({"object": obj, "symbol": name, "address": cres.library.get_pointer_to_function(name)})
 with open(f"{out}/functions.json", "w") as f:
     json.dump(functions, f)
-run(steps)
 '''
+CHILD = PRELUDE + ENGINE_MEASUREMENT + EPILOGUE
 
 
 def _symbol(obj: str, symbol: str) -> tuple[str, int, int]:
@@ -95,8 +79,10 @@ def profile(map_name: str, battles: int, steps: int, work: Path) -> dict[str, fl
     env = {**os.environ, "NUMBA_NUM_THREADS": "1", "NUMBA_DEBUGINFO": "1", "NUMBA_CACHE_DIR": str(work / "cache"),
            "PYTHONPATH": os.pathsep.join(filter(None, [str(KERNELS.parents[2]), os.environ.get("PYTHONPATH")]))}
     data = work / "perf.data"
-    subprocess.run(["perf", "record", "-q", "-F", "2000", "-o", str(data), sys.executable, "-c", CHILD, map_name,
-                    str(battles), str(steps), str(work)], env=env, check=True)
+    windows = max(1, steps // 50)  # ab_speed's windows of 50 steps, after its warm-up
+    subprocess.run(["perf", "record", "-q", "-F", "2000", "-o", str(data), sys.executable, "-c", CHILD,
+                    f"engine{battles}", map_name, str(windows), "50", str(work)], env=env, check=True,
+                   stdout=subprocess.DEVNULL)
     ips = subprocess.run(["perf", "script", "-i", str(data), "-F", "ip"], capture_output=True, text=True,
                          check=True).stdout.split()
     counts = collections.Counter(int(ip, 16) for ip in ips)
