@@ -14,7 +14,7 @@ from typing import Any
 
 from smac_hard_gym.training.checkpoints import RESUMABLE_OPTIONS
 from smac_hard_gym.training.config import POLICIES, POLICY_DEFAULTS, REWARDS
-from smac_hard_gym.training.mappo_settings import CLIP_FOR_EPOCHS, RATIOS
+from smac_hard_gym.training.mappo_settings import CLIP_FOR_EPOCHS, MAPPO_DEFAULT, MEASURED, RATIOS
 
 HELP = "train MaskablePPO on a map against an opponent pool and report the win rate"
 # the options `train --resume` takes besides --out: the settings a resume may change, as the command line spells them
@@ -30,7 +30,9 @@ def _policy_defaults() -> str:
 
     flags = {"n_epochs": "epochs"}  # the config's field names that the CLI spells otherwise
     clips = ", ".join(f"{clip} with {epochs}" for epochs, clip in CLIP_FOR_EPOCHS.items())
-    per_map = {"shared": f"; n-steps 50 (MAPPO's 8 threads x 400 over 64 battles; 32 where measured), epochs and "
+    measured_steps = sorted({m["n_steps"] for m in MEASURED.values() if "n_steps" in m})
+    per_map = {"shared": f"; n-steps {MAPPO_DEFAULT['n_steps']} (MAPPO's 8 threads x 400 over 64 battles; "
+                         f"{', '.join(map(str, measured_steps))} where measured), epochs and "
                          f"frame-stack as MAPPO's launch script for the map has them (one frame where "
                          f"measured to do as well), clip-range with --ratio joint by "
                          f"epochs: {clips}, or as measured for the map, with --ratio unit MAPPO's for the map "
