@@ -4,6 +4,7 @@ hand-computed means and spreads, the markdown report, the CLI's one-line errors,
 import csv
 import json
 import math
+import shutil
 import sys
 
 import pytest
@@ -443,3 +444,43 @@ def test_unreadable_summary_counts_as_partial(tmp_path):
     for content in (b"", b"\xff\xfe", b"[1]", b'{"interrupted": "no"}', b"{"):
         (path / "summary.json").write_bytes(content)
         assert run_state(path) == "partial", content
+
+
+def test_runs_recorded_in_results_json_without_folders_count_as_done_and_stay_in_the_tables(tmp_path, capsys):
+    # A sweep carried on over machines: the first machine's run folders (models, logs) are gone, its results.json
+    # (committed) lists them. They are not trained again and stay in the tables beside the new runs.
+    _fake_run(tmp_path, "3m", "smac", 0, 1.0, [(0, 0.0), (100, 0.5), (200, 1.0)],
+              blackbox={"line_front": 0.5, "other": 0.0})
+    _fake_run(tmp_path, "8m", "default", 0, 0.25, [(0, 0.0), (200, 0.25)], per_opponent={"line_front": 0.25})
+    aggregate(tmp_path)
+    for label in ("3m-smac-s0", "8m-default-s0"):
+        shutil.rmtree(tmp_path / "runs" / label)
+    _fake_run(tmp_path, "3m", "smac", 1, 0.5, [(0, 0.0), (100, 0.0), (200, 0.5)],
+              blackbox={"line_front": 0.0, "other": 1.0})
+    results = aggregate(tmp_path)
+    smac = next(r for r in results["table"] if (r["map"], r["opponent"]) == ("3m", "smac"))
+    assert (smac["seeds"], smac["mean"], smac["min"], smac["max"]) == (2, 0.75, 0.5, 1.0)
+    bb = {r["script"]: (r["seeds"], r["mean"], r["weight"]) for r in results["blackbox"]}
+    # mixture per seed: 0.5 * 0.5 + 0.5 * 0.0 = 0.25 and 0.5 * 0.0 + 0.5 * 1.0 = 0.5
+    assert bb == {"line_front": (2, 0.25, 0.5), "other": (2, 0.5, 0.5), "mixture": (2, 0.375, 1.0)}
+    assert [(r["map"], r["script"], r["mean"]) for r in results["pool"]] == [("8m", "line_front", 0.25)]
+    recorded = next(r for r in results["runs"] if r["dir"] == "runs/3m-smac-s0")
+    assert recorded["curve"] == [[0, 0.0], [100, 0.5], [200, 1.0]]
+    # Written back, read back: a third aggregation keeps the same tables.
+    assert aggregate(tmp_path)["table"] == results["table"]
+
+    config = SweepConfig(maps=["3m"], seeds=3, opponents=["smac"], out=str(tmp_path))
+    states = {run.label: state for run, state in sweep.sweep_states(config).items()}
+    assert states == {"3m-smac-s0": "recorded", "3m-smac-s1": "done", "3m-smac-s2": "todo"}
+    assert main(["baselines", "--maps", "3m", "--seeds", "3", "--opponents", "smac", "--out", str(tmp_path),
+                 "--dry-run"]) == 0
+    printed = capsys.readouterr().out
+    assert "recorded 3m-smac-s0" in printed and "done     3m-smac-s1" in printed and "todo     3m-smac-s2" in printed
+
+
+def test_a_malformed_recorded_run_is_named(tmp_path):
+    (tmp_path / "results.json").write_text(json.dumps({"runs": [
+        {"map": "3m", "opponent": "smac", "seed": 0, "timesteps": 200, "final_win_rate": 1.5, "best_win_rate": 1.0,
+         "dir": "runs/3m-smac-s0"}]}))
+    with pytest.raises(baselines.MalformedFile, match=r"results\.json.*final_win_rate is 1\.5"):
+        aggregate(tmp_path)

@@ -39,7 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from smac_hard_gym.training.baselines import SweepConfig, plan, report_markdown, run_state, run_sweep, write_report
+    from smac_hard_gym.training.baselines import SweepConfig, report_markdown, run_sweep, write_report
+    from smac_hard_gym.training.baselines.sweep import describe_states, sweep_states
 
     if args.report:
         path = write_report(args.out, args.report)
@@ -52,16 +53,14 @@ def run(args: argparse.Namespace) -> int:
     config = SweepConfig(maps=maps, seeds=args.seeds, timesteps=args.timesteps, out=args.out, opponents=opponents,
                          eval_episodes=args.eval_episodes, num_envs=args.num_envs, jobs=args.jobs,
                          experiment=args.experiment, train_args=shlex.split(args.train_args))
-    runs = plan(config)
-    states = [run_state(r.path(config.out), config.timesteps) for r in runs]
+    states = sweep_states(config)
     print(f"sweep: {len(config.maps)} map(s) x {len(config.opponents)} opponent(s) "
-          f"({', '.join(config.opponents)}) x {config.seeds} seed(s) = {len(runs)} runs of {config.timesteps:,} "
+          f"({', '.join(config.opponents)}) x {config.seeds} seed(s) = {len(states)} runs of {config.timesteps:,} "
           f"steps, {config.jobs} at a time, into {config.out}")
-    print(f"  done {states.count('done')}, cut short with a checkpoint (resumed) {states.count('resumable')}, "
-          f"partial (redone) {states.count('partial')}, to do {states.count('todo')}"
+    print(f"  {describe_states(states)}"
           f"; black-box evaluation: {'yes' if config.blackbox else 'no'}; values: {'yes' if config.values else 'no'}")
     if args.dry_run:
-        for r, state in zip(runs, states, strict=True):
+        for r, state in states.items():
             print(f"  {state:<8} {r.label}")
         return 0
     results = run_sweep(config, progress=not args.no_progress)

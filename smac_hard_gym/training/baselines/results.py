@@ -17,8 +17,8 @@ from smac_hard_gym.training.baselines.paper import MAP_ORDER
 from smac_hard_gym.training.baselines.planning import SWEEP_OPPONENTS, SweepConfig, run_state
 from smac_hard_gym.training.evaluation import MIXTURE_ROW
 
-__all__ = ["aggregate", "spread", "mean_curve", "MalformedFile", "json_object", "table_order", "write_csv",
-           "plot_curves"]
+__all__ = ["aggregate", "recorded_runs", "spread", "mean_curve", "MalformedFile", "json_object", "table_order",
+           "write_csv", "plot_curves"]
 
 
 def spread(values: Sequence[float]) -> dict[str, float]:
@@ -128,10 +128,74 @@ def _read_run(path: Path, out: Path) -> tuple[dict[str, Any], dict[int, float] |
     return row, curve, evaluation, value
 
 
+def _previous(out: Path) -> dict[str, Any]:
+    """``out/results.json`` as the last aggregation wrote it ({} when there is none), checked to be an object."""
+    if not (out / "results.json").is_file():
+        return {}
+    return json_object(read_json(out / "results.json", "sweep results"), out / "results.json", "sweep results")
+
+
+def _recorded_row(data: Any, path: Path) -> tuple[dict[str, Any], dict[int, float] | None, dict[str, Any] | None,
+                                                   float | None]:
+    """A run row of ``results.json`` read back as :func:`_read_run` reads a run folder (its black-box weights are
+    the sweep's, filled in by the caller)."""
+    row = json_object(data, path, "run row")
+    seed = row.get("seed")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+        raise MalformedFile(f"{path}: malformed run row (seed is {seed!r}, expected an int)")
+    checked = {"map": _text(row, "map", path), "opponent": _text(row, "opponent", path), "seed": seed,
+               "timesteps": _number(row, "timesteps", path),
+               "final_win_rate": _number(row, "final_win_rate", path, rate=True),
+               "best_win_rate": _number(row, "best_win_rate", path, rate=True),
+               "train_wall_s": _number(row, "train_wall_s", path, optional=True), "dir": _text(row, "dir", path),
+               "final_per_opponent": _rates(row.get("final_per_opponent"), path, "final_per_opponent")}
+    curve = None
+    if row.get("curve") is not None:
+        points = row["curve"]
+        if not isinstance(points, list) or not all(isinstance(p, list) and len(p) == 2 for p in points):
+            raise MalformedFile(f"{path}: malformed run row (curve is {points!r}, expected [[step, win rate], ...])")
+        curve = {int(_number({"step": s}, "step", path)): _number({"rate": r}, "rate", path, rate=True)
+                 for s, r in points}
+    evaluation = None
+    if row.get("blackbox") is not None:
+        rates = _rates(row["blackbox"], path, "blackbox")
+        mixture = rates.pop(MIXTURE_ROW, None)
+        if mixture is None:
+            raise MalformedFile(f"{path}: malformed run row (blackbox has no {MIXTURE_ROW!r} rate)")
+        evaluation = {"scripts": rates, "mixture": mixture, "weights": {}}
+    value = _number(row, "mean_value", path, optional=True)
+    return checked, curve, evaluation, value
+
+
+def recorded_runs(out: str | Path) -> dict[str, tuple[dict[str, Any], dict[int, float] | None,
+                                                      dict[str, Any] | None, float | None]]:
+    """The runs ``out/results.json`` lists whose folder is not under ``out`` (a published sweep keeps its results,
+    not its models; a sweep carried on another machine has only those): run label -> what :func:`_read_run` gives.
+    They count as done: not trained again, and kept in the tables beside the runs with folders."""
+    out = Path(out)
+    previous = _previous(out)
+    rows = previous.get("runs", [])
+    if not isinstance(rows, list):
+        raise MalformedFile(f"{out / 'results.json'}: malformed sweep results (runs is not a list)")
+    weights = {(r.get("map"), r.get("script")): r.get("weight") for r in previous.get("blackbox", [])
+               if isinstance(r, dict)}
+    recorded = {}
+    for data in rows:
+        row, curve, evaluation, value = _recorded_row(data, out / "results.json")
+        if (out / row["dir"]).exists():
+            continue
+        if evaluation is not None:
+            evaluation["weights"] = {name: _number({"weight": weights.get((row["map"], name), 1.0)}, "weight",
+                                                   out / "results.json") for name in evaluation["scripts"]}
+        recorded[Path(row["dir"]).name] = (row, curve, evaluation, value)
+    return recorded
+
+
 def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, Any]:
-    """Read every finished run under ``out/runs`` and write ``results.json``, ``results.csv``, ``blackbox.csv``,
-    ``pool.csv`` and ``curves/<map>.png``; returns the results. Without ``config``, the one saved in
-    ``results.json`` (if any) is kept."""
+    """Read every finished run under ``out/runs`` (and the runs ``results.json`` records without a folder,
+    :func:`recorded_runs`) and write ``results.json``, ``results.csv``, ``blackbox.csv``, ``pool.csv`` and
+    ``curves/<map>.png``; returns the results. Without ``config``, the one saved in ``results.json`` (if any) is
+    kept. Each run's row carries its learning curve, so a run recorded this way keeps it."""
     out = Path(out)
     runs: list[dict[str, Any]] = []
     curves: dict[tuple[str, str], list[dict[int, float]]] = {}
@@ -139,17 +203,17 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     weights: dict[tuple[str, str], float] = {}
     values: dict[tuple[str, str], list[float]] = {}
     pool: dict[tuple[str, str], list[float]] = {}  # (map, script) -> final test win rate per `default` seed
-    for path in sorted((out / "runs").glob("*")):
-        if run_state(path) != "done":
-            continue
-        row, curve, evaluation, value = _read_run(path, out)
-        per_opponent = row.pop("final_per_opponent")
+    folders = [_read_run(path, out) for path in sorted((out / "runs").glob("*")) if run_state(path) == "done"]
+    recorded = recorded_runs(out)
+    for row, curve, evaluation, value in sorted([*folders, *recorded.values()], key=lambda r: r[0]["dir"]):
+        per_opponent = row["final_per_opponent"]
         key = (row["map"], row["opponent"])
         if row["opponent"] == "default":
             for script, rate in per_opponent.items():
                 pool.setdefault((row["map"], script), []).append(rate)
         if curve is not None:
             curves.setdefault(key, []).append(curve)
+            row["curve"] = [[step, rate] for step, rate in sorted(curve.items())]
         if evaluation is not None:
             row["blackbox"] = dict(evaluation["scripts"])
             row["blackbox"]["mixture"] = evaluation["mixture"]
@@ -174,9 +238,8 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     value_table = [{"map": m, "opponent": o, **spread(v)} for (m, o), v in sorted(values.items(), key=table_order)]
     pool_table = [{"map": m, "script": s, **spread(v)} for (m, s), v in sorted(pool.items(), key=script_order)]
     saved = {}
-    if config is None and (out / "results.json").is_file():
-        saved = json_object(read_json(out / "results.json", "sweep results"), out / "results.json",
-                        "sweep results").get("config", {})
+    if config is None:
+        saved = _previous(out).get("config", {})
         if not isinstance(saved, dict):
             raise MalformedFile(f"{out / 'results.json'}: malformed sweep results (config is {saved!r}, expected "
                                 "an object)")

@@ -22,9 +22,13 @@ from smac_hard_gym.training.baselines.planning import (
     train_command,
     value_command,
 )
-from smac_hard_gym.training.baselines.results import MalformedFile, aggregate
+from smac_hard_gym.training.baselines.results import MalformedFile, aggregate, recorded_runs
 
-__all__ = ["run_sweep"]
+__all__ = ["run_sweep", "sweep_states"]
+
+# What a run's state means for the sweep (``run_state``, plus ``recorded``: listed in results.json, no folder).
+STATE_NAMES = {"done": "done", "recorded": "recorded in results.json (no folder)",
+               "resumable": "cut short with a checkpoint (resumed)", "partial": "partial (redone)", "todo": "to do"}
 
 
 def _start(command: list[str], log: Path) -> subprocess.Popen:
@@ -88,21 +92,37 @@ def _evaluations(run: Run, config: SweepConfig) -> list[Step]:
     return steps
 
 
+def sweep_states(config: SweepConfig) -> dict[Run, str]:
+    """Each planned run's state: :func:`~.planning.run_state` of its folder, or ``"recorded"`` for a run without one
+    that ``results.json`` lists (:func:`~.results.recorded_runs`): done, as far as the sweep is concerned."""
+    recorded = recorded_runs(config.out)
+    states = {}
+    for run in plan(config):
+        state = run_state(run.path(config.out), config.timesteps)
+        states[run] = "recorded" if state == "todo" and run.label in recorded else state
+    return states
+
+
+def describe_states(states: dict[Run, str]) -> str:
+    """``done 3, recorded ... 2, ...``: how many runs are in each state, in a fixed order."""
+    counts = list(states.values())
+    return ", ".join(f"{name} {counts.count(state)}" for state, name in STATE_NAMES.items())
+
+
 def run_sweep(config: SweepConfig, *, progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Train the runs not done yet, each followed at once by its evaluations (black-box for the ``smac`` models, the
     mixing experiment's values), and return :func:`aggregate`'s results. ``results.json`` and the tables are
     rewritten as each run ends, so a sweep cut short (or its machine lost) keeps every finished run's figures."""
     out = Path(config.out)
     out.mkdir(parents=True, exist_ok=True)
-    runs = plan(config)
-    states = {run: run_state(run.path(out), config.timesteps) for run in runs}
-    log(f"{len(runs)} runs: {sum(s == 'done' for s in states.values())} done, "
-        f"{sum(s == 'resumable' for s in states.values())} carried on from a checkpoint, "
-        f"{sum(s == 'partial' for s in states.values())} partial (redone), "
-        f"{sum(s == 'todo' for s in states.values())} to do")
+    states = sweep_states(config)
+    runs = list(states)
+    log(f"{len(runs)} runs: {describe_states(states)}")
     jobs: list[tuple[str, list[Step]]] = []
     for run in runs:
         path = run.path(out)
+        if states[run] == "recorded":
+            continue
         if states[run] == "partial":
             shutil.rmtree(path)
         command = resume_command(run, config) if states[run] == "resumable" else train_command(run, config)
