@@ -17,8 +17,9 @@ The sweep is resumable: a run whose ``summary.json`` exists (and was not interru
 directory is cleared and the run redone. It can also be carried on elsewhere: every run's row in ``results.json``
 holds its final figures, black-box rates and learning curve, so a run that ``results.json`` lists and whose folder
 is gone (a published sweep keeps no models; a machine was lost) is *recorded*: done, kept in the tables and curves
-beside the runs with folders (:func:`~.results.recorded_runs`). To train such a run again, delete its row. :func:`~.report.write_report` writes a markdown table from
-``results.json`` next to the paper's QMIX and MAPPO columns (:data:`~.paper.PAPER`), without training.
+beside the runs with folders (:func:`~.results.recorded_runs`). To train such a run again, delete its row.
+:func:`~.report.write_report` writes a markdown table from ``results.json`` next to the paper's QMIX and MAPPO
+columns (:data:`~.paper.PAPER`), without training.
 
 ``experiment="mixing"`` is the paper's section 4.2 on 10m_vs_11m: ``nearest``, ``weakest`` and their 50/50
 mixture, and at the end of each run the critic's value of the first observation of test episodes, averaged

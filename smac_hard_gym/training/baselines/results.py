@@ -32,6 +32,11 @@ class MalformedFile(ValueError):
     """A file of a run or of the sweep cannot be read (the message names the file and what is wrong)."""
 
 
+# One finished run as read back: its table row, its learning curve (step -> test win rate), its black-box evaluation
+# ({"scripts", "mixture", "weights"}) and its value estimate; the last three may be missing (None).
+RunReading = tuple[dict[str, Any], dict[int, float] | None, dict[str, Any] | None, float | None]
+
+
 def _read_curve(path: Path) -> dict[int, float]:
     try:
         with path.open(newline="", encoding="utf-8") as handle:
@@ -86,8 +91,7 @@ def _rates(data: Any, path: Path, key: str) -> dict[str, float]:
     return {str(name): _number(data, name, path, rate=True) for name in data}
 
 
-def _read_run(path: Path, out: Path) -> tuple[dict[str, Any], dict[int, float] | None, dict[str, Any] | None,
-                                              float | None]:
+def _read_run(path: Path, out: Path) -> RunReading:
     """One finished run's row, curve, black-box evaluation and value estimate; malformed files raise
     :class:`MalformedFile` naming them."""
     summary_path = path / "summary.json"
@@ -135,8 +139,7 @@ def _previous(out: Path) -> dict[str, Any]:
     return json_object(read_json(out / "results.json", "sweep results"), out / "results.json", "sweep results")
 
 
-def _recorded_row(data: Any, path: Path) -> tuple[dict[str, Any], dict[int, float] | None, dict[str, Any] | None,
-                                                   float | None]:
+def _recorded_row(data: Any, path: Path) -> RunReading:
     """A run row of ``results.json`` read back as :func:`_read_run` reads a run folder (its black-box weights are
     the sweep's, filled in by the caller)."""
     row = json_object(data, path, "run row")
@@ -154,8 +157,11 @@ def _recorded_row(data: Any, path: Path) -> tuple[dict[str, Any], dict[int, floa
         points = row["curve"]
         if not isinstance(points, list) or not all(isinstance(p, list) and len(p) == 2 for p in points):
             raise MalformedFile(f"{path}: malformed run row (curve is {points!r}, expected [[step, win rate], ...])")
-        curve = {int(_number({"step": s}, "step", path)): _number({"rate": r}, "rate", path, rate=True)
-                 for s, r in points}
+        curve = {}
+        for step, rate in points:
+            if isinstance(step, bool) or not isinstance(step, int) or step < 0:
+                raise MalformedFile(f"{path}: malformed run row (curve step {step!r}, expected an int >= 0)")
+            curve[step] = _number({"win_rate": rate}, "win_rate", path, rate=True)
     evaluation = None
     if row.get("blackbox") is not None:
         rates = _rates(row["blackbox"], path, "blackbox")
@@ -167,8 +173,7 @@ def _recorded_row(data: Any, path: Path) -> tuple[dict[str, Any], dict[int, floa
     return checked, curve, evaluation, value
 
 
-def recorded_runs(out: str | Path) -> dict[str, tuple[dict[str, Any], dict[int, float] | None,
-                                                      dict[str, Any] | None, float | None]]:
+def recorded_runs(out: str | Path) -> dict[str, RunReading]:
     """The runs ``out/results.json`` lists whose folder is not under ``out`` (a published sweep keeps its results,
     not its models; a sweep carried on another machine has only those): run label -> what :func:`_read_run` gives.
     They count as done: not trained again, and kept in the tables beside the runs with folders."""
