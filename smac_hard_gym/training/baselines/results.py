@@ -178,7 +178,11 @@ def recorded_runs(out: str | Path) -> dict[str, RunReading]:
     not its models; a sweep carried on another machine has only those): run label -> what :func:`_read_run` gives.
     They count as done: not trained again, and kept in the tables beside the runs with folders."""
     out = Path(out)
-    previous = _previous(out)
+    return _recorded(out, _previous(out))
+
+
+def _recorded(out: Path, previous: dict[str, Any]) -> dict[str, RunReading]:
+    """:func:`recorded_runs` from ``previous``, ``out/results.json`` already read."""
     rows = previous.get("runs", [])
     if not isinstance(rows, list):
         raise MalformedFile(f"{out / 'results.json'}: malformed sweep results (runs is not a list)")
@@ -209,7 +213,8 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     values: dict[tuple[str, str], list[float]] = {}
     pool: dict[tuple[str, str], list[float]] = {}  # (map, script) -> final test win rate per `default` seed
     folders = [_read_run(path, out) for path in sorted((out / "runs").glob("*")) if run_state(path) == "done"]
-    recorded = recorded_runs(out)
+    previous = _previous(out)  # read once: the recorded runs and, without ``config``, the saved config
+    recorded = _recorded(out, previous)
     for row, curve, evaluation, value in sorted([*folders, *recorded.values()], key=lambda r: r[0]["dir"]):
         per_opponent = row["final_per_opponent"]
         key = (row["map"], row["opponent"])
@@ -244,7 +249,7 @@ def aggregate(out: str | Path, config: SweepConfig | None = None) -> dict[str, A
     pool_table = [{"map": m, "script": s, **spread(v)} for (m, s), v in sorted(pool.items(), key=script_order)]
     saved = {}
     if config is None:
-        saved = _previous(out).get("config", {})
+        saved = previous.get("config", {})
         if not isinstance(saved, dict):
             raise MalformedFile(f"{out / 'results.json'}: malformed sweep results (config is {saved!r}, expected "
                                 "an object)")
