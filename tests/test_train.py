@@ -96,6 +96,23 @@ def test_train_and_eval_commands_end_to_end(tmp_path, capsys, monkeypatch):
     mean = sum(row["win_rate"] for row in scripts.values()) / len(scripts)  # equal weights
     assert results["mixture"]["win_rate"] == pytest.approx(mean)
     assert "all (mixture)" in capsys.readouterr().out
+    assert results["actions"] == "deterministic"
+
+    # Sampled actions: the barely trained policy is close to uniform, so the games a script gets depend on where
+    # torch's generator stands; seeded with the test battles' seed before each script, `smac` plays the same games
+    # alone and after another script.
+    sampled = []
+    for k, pool in enumerate(("smac", "base,smac")):
+        assert main(["eval", "--model", str(out / "model.zip"), "--opponent", pool, "--episodes", "4",
+                     "--num-envs", "2", "--sample-actions", "--json", str(tmp_path / f"sampled{k}.json")]) == 0
+        sampled.append(json.loads((tmp_path / f"sampled{k}.json").read_text()))
+    assert "sampled actions" in capsys.readouterr().out
+    assert [s["actions"] for s in sampled] == ["sampled", "sampled"]
+    assert list(sampled[1]["scripts"]) == ["base", "smac"]
+    assert sampled[0]["scripts"]["smac"] == sampled[1]["scripts"]["smac"]
+    assert main(["eval", "--model", str(out / "model.zip"), "--opponent", "smac", "--episodes", "4", "--num-envs",
+                 "2", "--sample-actions", "--seed", "7"]) == 0
+    assert (out / "eval_3m_smac_sampled.json").is_file()  # beside the model, apart from the deterministic file
 
 
 def test_train_with_the_shared_policy_and_eval_it(tmp_path, capsys):

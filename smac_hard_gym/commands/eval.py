@@ -32,6 +32,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None,
                         help="seed of the first test battle (battle b: SEED + b; default: the test seeds train "
                              "evaluates on, 1000000000 + b)")
+    parser.add_argument("--sample-actions", action="store_true",
+                        help="sample each unit's action from the policy instead of taking the most likely one (the "
+                             "protocol's default, as in SB3's evaluate_policy, MAPPO and EPyMARL); torch's generator "
+                             "is seeded with the first test battle's seed, so a run repeats")
     parser.add_argument("--json", default=None, help="write the results here (default: next to the model)")
 
 
@@ -71,10 +75,11 @@ def run(args: argparse.Namespace) -> int:
     torch.set_num_threads(1)
     model = load_model(model_path)  # a file that is not a model: one ValueError naming it
     _check_fits(model, map_name, env_kwargs, run_config.map_name if run_config else None)
+    actions = "sampled" if args.sample_actions else "most likely"
     print(f"model {model_path} on {map_name}: {len(names)} script(s) x {args.episodes} episodes, test battles "
-          f"seeded {seeds[0]}..{seeds[-1]}")
+          f"seeded {seeds[0]}..{seeds[-1]}, {actions} actions")
     results = evaluate_scripts(model, map_name, args.opponent, args.episodes, num_envs=args.num_envs,
-                               seed=seed, env_kwargs=env_kwargs, log=print)
+                               seed=seed, env_kwargs=env_kwargs, log=print, deterministic=not args.sample_actions)
     rows = [("opponent", "weight", "win rate", "stderr", "95% interval", "wins", "mean return")]
     for name, row in results["scripts"].items():
         low, high = row["ci95"]
@@ -85,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
                  f"[{mixture['ci95'][0]:.3f}, {mixture['ci95'][1]:.3f}]", "", ""))
     print()
     print(format_table(rows))
-    default_name = f"eval_{map_name}_{args.opponent.replace(',', '+')}.json"
+    sampled = "_sampled" if args.sample_actions else ""
+    default_name = f"eval_{map_name}_{args.opponent.replace(',', '+')}{sampled}.json"
     out = Path(args.json) if args.json else model_path.with_name(default_name)
     write_json(out, results)
     print(f"\nwrote {out}")

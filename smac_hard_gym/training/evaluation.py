@@ -102,30 +102,38 @@ def resolve_opponents(map_name: str, opponent: str) -> tuple[list[str], np.ndarr
 
 
 def evaluate_against(model: Any, map_name: str, opponent: Any, episodes: int, num_envs: int, seed: int,
-                      env_kwargs: dict[str, Any] | None) -> EvalResult:
-    """:func:`evaluate` on a fresh native vector env of ``map_name`` against one ``opponent``, closed afterwards."""
+                      env_kwargs: dict[str, Any] | None, deterministic: bool = True) -> EvalResult:
+    """:func:`evaluate` on a fresh native vector env of ``map_name`` against one ``opponent``, closed afterwards.
+
+    With ``deterministic=False`` every unit's action is sampled from the policy, from torch's generator seeded with
+    ``seed`` first, so the same call plays the same games."""
     from smac_hard_gym.envs.vector import NativeVectorEnv
 
     kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "map_name"}
     venv = NativeVectorEnv(map_name, min(num_envs, episodes), autoreset_mode="SameStep", opponent=opponent, **kwargs)
     try:
-        return evaluate(model, venv, episodes, seed=seed)
+        if not deterministic:
+            import torch
+
+            torch.manual_seed(seed)
+        return evaluate(model, venv, episodes, seed=seed, deterministic=deterministic)
     finally:
         venv.close()
 
 
 def evaluate_scripts(model: Any, map_name: str, opponent: str, episodes: int, *, num_envs: int = 16,
                      seed: int = TEST_SEED_BASE, env_kwargs: dict[str, Any] | None = None,
-                     log: Callable[[str], None] | None = None) -> dict[str, Any]:
+                     log: Callable[[str], None] | None = None, deterministic: bool = True) -> dict[str, Any]:
     """Evaluate ``model`` for ``episodes`` episodes against each script of ``opponent`` (see
     :func:`resolve_opponents`); the mixture's win rate is the weighted mean of the scripts' (its expectation), its
     standard error ``sqrt(sum(w_i^2 se_i^2))`` and its 95% interval the weighted sum of the scripts' Wilson bounds.
     Each script plays the test battles seeded ``seed + b`` (by default the test seeds that ``train`` evaluates on,
-    :data:`TEST_SEED_BASE`)."""
+    :data:`TEST_SEED_BASE`), with the most likely actions (the protocol's), or sampled ones with
+    ``deterministic=False`` (:func:`evaluate_against`); the result's ``actions`` says which."""
     names, probs = resolve_opponents(map_name, opponent)
     rows: dict[str, dict[str, Any]] = {}
     for name in names:
-        result = evaluate_against(model, map_name, name, episodes, num_envs, seed, env_kwargs)
+        result = evaluate_against(model, map_name, name, episodes, num_envs, seed, env_kwargs, deterministic)
         spread = result.spread
         rows[name] = {"episodes": result.episodes, "wins": result.wins, "win_rate": result.win_rate,
                       "stderr": spread["stderr"], "ci95": spread["ci95"],
@@ -137,6 +145,7 @@ def evaluate_scripts(model: Any, map_name: str, opponent: str, episodes: int, *,
     # The weighted sum of the scripts' Wilson bounds: conservative, and never a zero-width interval at 0 or 1.
     ci95 = [float(sum(p * rows[n]["ci95"][k] for n, p in zip(names, probs, strict=True))) for k in (0, 1)]
     return {"map": map_name, "opponent": opponent, "episodes_per_script": episodes, "seed": seed,
+            "actions": "deterministic" if deterministic else "sampled",
             "test_seeds": eval_seeds(min(num_envs, episodes), seed),
             "scripts": rows, "weights": dict(zip(names, (float(p) for p in probs), strict=True)),
             MIXTURE_ROW: {"win_rate": mixture, "stderr": stderr, "ci95": ci95}}
