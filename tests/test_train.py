@@ -113,6 +113,12 @@ def test_train_and_eval_commands_end_to_end(tmp_path, capsys, monkeypatch):
     assert main(["eval", "--model", str(out / "model.zip"), "--opponent", "smac", "--episodes", "4", "--num-envs",
                  "2", "--sample-actions", "--seed", "7"]) == 0
     assert (out / "eval_3m_smac_sampled.json").is_file()  # beside the model, apart from the deterministic file
+    from smac_hard_gym.training.evaluation import evaluate_against
+    from smac_hard_gym.training.run_files import load_model, load_run_config
+
+    model, before = load_model(out / "model.zip"), torch.get_rng_state()
+    evaluate_against(model, "3m", "smac", 2, 2, 0, load_run_config(out / "model.zip").env_kwargs(), deterministic=False)
+    assert torch.equal(torch.get_rng_state(), before)  # the caller's generator is left as it was
 
 
 def test_train_with_the_shared_policy_and_eval_it(tmp_path, capsys):

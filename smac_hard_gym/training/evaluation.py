@@ -106,17 +106,19 @@ def evaluate_against(model: Any, map_name: str, opponent: Any, episodes: int, nu
     """:func:`evaluate` on a fresh native vector env of ``map_name`` against one ``opponent``, closed afterwards.
 
     With ``deterministic=False`` every unit's action is sampled from the policy, from torch's generator seeded with
-    ``seed`` first, so the same call plays the same games."""
+    ``seed`` (a fork of it: the caller's generator is left as it was), so the same call plays the same games."""
     from smac_hard_gym.envs.vector import NativeVectorEnv
 
     kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "map_name"}
     venv = NativeVectorEnv(map_name, min(num_envs, episodes), autoreset_mode="SameStep", opponent=opponent, **kwargs)
     try:
-        if not deterministic:
-            import torch
+        if deterministic:
+            return evaluate(model, venv, episodes, seed=seed)
+        import torch  # a sampling policy is a torch one
 
+        with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
-        return evaluate(model, venv, episodes, seed=seed, deterministic=deterministic)
+            return evaluate(model, venv, episodes, seed=seed, deterministic=False)
     finally:
         venv.close()
 
