@@ -35,14 +35,10 @@ def spread(model_path: Path, episodes: int, opponent: str, min_attackers: int) -
     from smac_hard_gym.envs.vector import NativeVectorEnv
     from smac_hard_gym.smac.kernels import N_ACTIONS_NO_ATTACK
     from smac_hard_gym.training.protocol import TEST_SEED_BASE
-    from smac_hard_gym.training.run_files import load_model, load_run_config
+    from smac_hard_gym.training.run_files import load_trained
 
     torch.set_num_threads(1)
-    config = load_run_config(model_path)
-    if config is None:
-        raise SystemExit(f"no config.json next to {model_path}")
-    env_kwargs = {k: v for k, v in config.env_kwargs().items() if k != "map_name"}
-    model = load_model(model_path)
+    model, config, env_kwargs = load_trained(model_path)
     seen: dict[str, list[float]] = {k: [] for k in ("p_top", "p_attack", "attacking_greedy", "attacking_sampled",
                                                     "distinct_targets_greedy", "distinct_targets_sampled")}
     for episode in range(episodes):

@@ -38,14 +38,10 @@ def trace(model_path: Path, games: int, opponent: str, show: int | None, orders:
     from smac_hard_gym.engine.units import UNITS
     from smac_hard_gym.envs.vector import NativeVectorEnv
     from smac_hard_gym.training.protocol import TEST_SEED_BASE
-    from smac_hard_gym.training.run_files import load_model, load_run_config
+    from smac_hard_gym.training.run_files import load_trained
 
     torch.set_num_threads(1)
-    config = load_run_config(model_path)
-    if config is None:
-        raise SystemExit(f"no config.json next to {model_path}")
-    kwargs = {k: v for k, v in config.env_kwargs().items() if k != "map_name"}
-    model = load_model(model_path)
+    model, config, kwargs = load_trained(model_path)
     won = []
     for game in range(games):
         venv = NativeVectorEnv(config.map_name, 1, autoreset_mode="SameStep", opponent=opponent, **kwargs)

@@ -4,6 +4,7 @@ pools, and MaskablePPO on the subprocess env."""
 import csv
 import json
 import re
+import shutil
 import tempfile
 
 import numpy as np
@@ -114,11 +115,18 @@ def test_train_and_eval_commands_end_to_end(tmp_path, capsys, monkeypatch):
                  "2", "--sample-actions", "--seed", "7"]) == 0
     assert (out / "eval_3m_smac_sampled.json").is_file()  # beside the model, apart from the deterministic file
     from smac_hard_gym.training.evaluation import evaluate_against
-    from smac_hard_gym.training.run_files import load_model, load_run_config
+    from smac_hard_gym.training.run_files import load_trained
 
-    model, before = load_model(out / "model.zip"), torch.get_rng_state()
-    evaluate_against(model, "3m", "smac", 2, 2, 0, load_run_config(out / "model.zip").env_kwargs(), deterministic=False)
+    model, config, options = load_trained(out / "model.zip")
+    assert config.map_name == "3m" and "map_name" not in options
+    before = torch.get_rng_state()
+    evaluate_against(model, config.map_name, "smac", 2, 2, 0, options, deterministic=False)
     assert torch.equal(torch.get_rng_state(), before)  # the caller's generator is left as it was
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(out / "model.zip", alone / "model.zip")
+    with pytest.raises(FileNotFoundError, match="no config.json next to"):
+        load_trained(alone / "model.zip")
 
 
 def test_train_with_the_shared_policy_and_eval_it(tmp_path, capsys):

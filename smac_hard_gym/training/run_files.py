@@ -14,7 +14,7 @@ from smac_hard_gym.files import atomic_path, atomic_write, read_json
 from smac_hard_gym.training.config import TrainConfig
 from smac_hard_gym.training.protocol import eval_seeds, win_rate_spread
 
-__all__ = ["CURVE_COLUMNS", "write_curve", "plot_curve", "run_summary", "load_run_config", "load_model"]
+__all__ = ["CURVE_COLUMNS", "write_curve", "plot_curve", "run_summary", "load_run_config", "load_model", "load_trained"]
 
 CURVE_COLUMNS = ("timesteps", "win_rate", "mean_return", "mean_length", "episodes", "train_win_rate",
                  "train_episodes", "wall_s", "env_s", "env_fraction")
@@ -135,3 +135,14 @@ def load_model(path: str | Path) -> Any:
         detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
         raise ValueError(f"{path}: not a saved MaskablePPO model ({type(err).__name__}"
                          f"{': ' + detail if detail else ''})") from None
+
+
+def load_trained(model_path: str | Path) -> tuple[Any, TrainConfig, dict[str, Any]]:
+    """``(model, config, env_options)``: a model saved by ``train``, its run's :class:`TrainConfig` and the env
+    options it was trained with, less the map (``config.map_name``): what it takes to play the model's games, as
+    ``NativeVectorEnv(config.map_name, n, **env_options)``. The run's ``config.json`` must be beside the model."""
+    config = load_run_config(model_path)
+    if config is None:
+        raise FileNotFoundError(f"no config.json next to {str(model_path)!r}")
+    options = {k: v for k, v in config.env_kwargs().items() if k != "map_name"}
+    return load_model(model_path), config, options
