@@ -24,7 +24,19 @@ from pathlib import Path
 
 import numpy as np
 
-ORDER_LETTERS = "imaAhH"  # state.py's ORDER_IDLE, MOVE, ATTACK, ATTACK_MOVE, HOLD, HEAL
+from smac_hard_gym.engine.state import (
+    ORDER_ATTACK,
+    ORDER_ATTACK_MOVE,
+    ORDER_HEAL,
+    ORDER_HOLD,
+    ORDER_IDLE,
+    ORDER_MOVE,
+)
+
+ORDER_LETTERS = {ORDER_IDLE: "i", ORDER_MOVE: "m", ORDER_ATTACK: "a", ORDER_ATTACK_MOVE: "A", ORDER_HOLD: "h",
+                 ORDER_HEAL: "H"}
+ON_UNIT = (ORDER_ATTACK, ORDER_HEAL)  # orders with a unit as their target
+ON_POINT = (ORDER_MOVE, ORDER_ATTACK_MOVE)  # orders with a point
 
 
 def _unit(health: float, order: int, hits: int, alive: bool) -> str:
@@ -80,8 +92,8 @@ def _line(step: int, st: object, red: np.ndarray, orders: bool) -> str:
            f"{' '.join(u for u, r in zip(units, red, strict=True) if not r)}"
     if orders:
         own = [f"{i}:{ORDER_LETTERS[int(st.order[0, i])]}"
-               + (f">{st.order_target[0, i]}" if st.order_target[0, i] >= 0 and st.order[0, i] in (2, 5) else
-                  f">({st.order_x[0, i]:.1f},{st.order_y[0, i]:.1f})" if st.order[0, i] in (1, 3) else "")
+               + (f">{st.order_target[0, i]}" if st.order_target[0, i] >= 0 and st.order[0, i] in ON_UNIT else
+                  f">({st.order_x[0, i]:.1f},{st.order_y[0, i]:.1f})" if st.order[0, i] in ON_POINT else "")
                + f"@({x[i]:.1f},{y[i]:.1f})" for i in np.flatnonzero(red & alive)]
         text += "\n      " + " ".join(own)
     return text
