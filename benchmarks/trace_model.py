@@ -24,19 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from smac_hard_gym.engine.state import (
-    ORDER_ATTACK,
-    ORDER_ATTACK_MOVE,
-    ORDER_HEAL,
-    ORDER_HOLD,
-    ORDER_IDLE,
-    ORDER_MOVE,
-)
+from smac_hard_gym.engine import state as orders
 
-ORDER_LETTERS = {ORDER_IDLE: "i", ORDER_MOVE: "m", ORDER_ATTACK: "a", ORDER_ATTACK_MOVE: "A", ORDER_HOLD: "h",
-                 ORDER_HEAL: "H"}
-ON_UNIT = (ORDER_ATTACK, ORDER_HEAL)  # orders with a unit as their target
-ON_POINT = (ORDER_MOVE, ORDER_ATTACK_MOVE)  # orders with a point
+ORDER_LETTERS = {orders.ORDER_IDLE: "i", orders.ORDER_MOVE: "m", orders.ORDER_ATTACK: "a",
+                 orders.ORDER_ATTACK_MOVE: "A", orders.ORDER_HOLD: "h", orders.ORDER_HEAL: "H"}
+ON_UNIT = (orders.ORDER_ATTACK, orders.ORDER_HEAL)  # orders with a unit as their target
+ON_POINT = (orders.ORDER_MOVE, orders.ORDER_ATTACK_MOVE)  # orders with a point
 
 
 def _unit(health: float, order: int, hits: int, alive: bool) -> str:
