@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from smac_hard_gym.engine import state as orders
+from smac_hard_gym.engine import state as engine_state
 
-ORDER_LETTERS = {orders.ORDER_IDLE: "i", orders.ORDER_MOVE: "m", orders.ORDER_ATTACK: "a",
-                 orders.ORDER_ATTACK_MOVE: "A", orders.ORDER_HOLD: "h", orders.ORDER_HEAL: "H"}
-ON_UNIT = (orders.ORDER_ATTACK, orders.ORDER_HEAL)  # orders with a unit as their target
-ON_POINT = (orders.ORDER_MOVE, orders.ORDER_ATTACK_MOVE)  # orders with a point
+ORDER_LETTERS = {engine_state.ORDER_IDLE: "i", engine_state.ORDER_MOVE: "m", engine_state.ORDER_ATTACK: "a",
+                 engine_state.ORDER_ATTACK_MOVE: "A", engine_state.ORDER_HOLD: "h", engine_state.ORDER_HEAL: "H"}
+ON_UNIT = (engine_state.ORDER_ATTACK, engine_state.ORDER_HEAL)  # orders with a unit as their target
+ON_POINT = (engine_state.ORDER_MOVE, engine_state.ORDER_ATTACK_MOVE)  # orders with a point
 
 
 def _unit(health: float, order: int, hits: int, alive: bool) -> str:
