@@ -3,14 +3,17 @@
 Runs ``ab_speed.py``'s ``engine<N>`` measurement (``BattleEngine(map, battles)`` alone, random move and attack
 orders) on one numba thread under ``perf record``, in a child process that compiles the kernels
 afresh with line tables (``NUMBA_DEBUGINFO``, inlining kept as in a normal build) into a temporary numba cache. Each
-sample inside the compiled ``step_battles`` is mapped to its source line with ``addr2line`` and counted under the
-kernel function whose line it is, outermost first: the phases (``_movement``, ``_separation``, ``_attacks``, ...)
-are inlined into the battle loop, so their lines are the loop's own. Needs Linux ``perf`` (sampling allowed for the
+sample inside the compiled ``step_battles``, or inside a helper it calls instead of inlining (numba links those into
+the same library: ``_sort_by_x``, ``_acquire``, ``_steer``, ``_fire`` ...), is mapped to its source line with
+``addr2line`` and counted under the kernel function whose line it is, outermost first: the phases (``_movement``,
+``_separation``, ``_attacks``, ...) are inlined into the battle loop, so their lines are the loop's own, and a
+called helper's samples count under its own name (not its caller's). Needs Linux ``perf`` (sampling allowed for the
 user) and binutils' ``addr2line``.
 
     python benchmarks/profile_engine.py --map 3m --battles 4096 --steps 600
 
-Numbers are shares of the samples in ``step_battles``; "?" is code with no line (register moves, loop set-up).
+Numbers are shares of the samples in ``step_battles`` and the helpers it calls; "?" is code with no line (register
+moves, loop set-up).
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ lowering.Lower.pre_lower = pre_lower
 '''
 EPILOGUE = r'''
 import json
+import subprocess
 from smac_hard_gym.engine import kernels
 out = sys.argv[5]
 functions = []
@@ -50,8 +54,14 @@ for k, cres in enumerate(kernels.step_battles.overloads.values()):
     obj = f"{out}/step_battles{k}.o"
     with open(obj, "wb") as f:
         f.write(cres.library._get_compiled_object())
-    name = cres.fndesc.llvm_func_name
-    functions.append({"object": obj, "symbol": name, "address": cres.library.get_pointer_to_function(name)})
+    # every function of the compiled library: step_battles and the helpers it calls rather than inlines
+    table = subprocess.run(["objdump", "-t", obj], capture_output=True, text=True, check=True).stdout
+    for line in table.splitlines():
+        parts = line.split()
+        if len(parts) >= 6 and "F" in parts[1:-3] and int(parts[-2], 16) > 0 and "kernels" in parts[-1]:
+            address = cres.library.get_pointer_to_function(parts[-1])
+            if address:
+                functions.append({"object": obj, "symbol": parts[-1], "address": address})
 with open(f"{out}/functions.json", "w") as f:
     json.dump(functions, f)
 '''
