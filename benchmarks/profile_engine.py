@@ -54,28 +54,20 @@ for k, cres in enumerate(kernels.step_battles.overloads.values()):
     obj = f"{out}/step_battles{k}.o"
     with open(obj, "wb") as f:
         f.write(cres.library._get_compiled_object())
-    # every function of the compiled library: step_battles and the helpers it calls rather than inlines
+    # every function of the compiled library (step_battles and the helpers it calls rather than inlines): where it
+    # is in the object file (section, offset, size) and where it was loaded
     table = subprocess.run(["objdump", "-t", obj], capture_output=True, text=True, check=True).stdout
     for line in table.splitlines():
         parts = line.split()
         if len(parts) >= 6 and "F" in parts[1:-3] and int(parts[-2], 16) > 0 and "kernels" in parts[-1]:
             address = cres.library.get_pointer_to_function(parts[-1])
             if address:
-                functions.append({"object": obj, "symbol": parts[-1], "address": address})
+                functions.append({"object": obj, "section": parts[-3], "offset": int(parts[0], 16),
+                                  "size": int(parts[-2], 16), "address": address})
 with open(f"{out}/functions.json", "w") as f:
     json.dump(functions, f)
 '''
 CHILD = PRELUDE + ENGINE_MEASUREMENT + EPILOGUE
-
-
-def _symbol(obj: str, symbol: str) -> tuple[str, int, int]:
-    """(section, offset in it, size) of the function ``symbol`` in an object file."""
-    table = subprocess.run(["objdump", "-t", obj], capture_output=True, text=True, check=True).stdout
-    for line in table.splitlines():
-        parts = line.split()
-        if parts and parts[-1] == symbol and "F" in parts[1:-3]:
-            return parts[-3], int(parts[0], 16), int(parts[-2], 16)
-    raise SystemExit(f"{symbol} not found in {obj}")
 
 
 def _kernel_functions() -> list[tuple[int, str]]:
@@ -98,10 +90,9 @@ def profile(map_name: str, battles: int, steps: int, work: Path) -> dict[str, fl
     counts = collections.Counter(int(ip, 16) for ip in ips)
     by_offset: dict[tuple[str, str, int], int] = collections.Counter()  # (object, section, offset): samples
     for fn in json.loads((work / "functions.json").read_text()):
-        section, start, size = _symbol(fn["object"], fn["symbol"])
         for address, c in counts.items():
-            if 0 <= address - fn["address"] < size:
-                by_offset[(fn["object"], section, start + address - fn["address"])] += c
+            if 0 <= address - fn["address"] < fn["size"]:
+                by_offset[(fn["object"], fn["section"], fn["offset"] + address - fn["address"])] += c
     if not by_offset:
         raise SystemExit("no samples fell in step_battles: is perf allowed to sample (perf_event_paranoid)?")
     starts = _kernel_functions()
