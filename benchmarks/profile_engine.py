@@ -94,7 +94,8 @@ def profile(map_name: str, battles: int, steps: int, work: Path) -> dict[str, fl
             if 0 <= address - fn["address"] < fn["size"]:
                 by_offset[(fn["object"], fn["section"], fn["offset"] + address - fn["address"])] += c
     if not by_offset:
-        raise SystemExit("no samples fell in step_battles: is perf allowed to sample (perf_event_paranoid)?")
+        raise SystemExit("no samples fell in step_battles or its helpers: is perf allowed to sample "
+                         "(perf_event_paranoid)?")
     starts = _kernel_functions()
 
     def owner(line: int) -> str:
