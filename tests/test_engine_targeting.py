@@ -177,17 +177,42 @@ def test_target_in_weapon_range_is_kept_when_another_enemy_attacks():
     assert engine.state.target[0, 2] == 0
 
 
-def test_target_that_cannot_hurt_yields_to_an_attacker_in_weapon_range():
-    # A blue marine shooting a red medivac (in range, harmless) is shot by a red marine within its own weapon range
-    # (edge distance 4 <= 5): it turns on the marine. (The layout puts the red marine in slot 0, the medivac in 1.)
-    engine = engine_with(["Marine_RL", "Medivac_RL"], ["Marine"], {0: (16.0, 20.75), 1: (13.0, 16.0),
+MEDIVAC_R = 0.75  # medivac radius
+
+
+def test_target_that_cannot_hurt_yields_to_a_threat_in_weapon_range():
+    # A blue marine shooting a red medivac (in range, harmless) with a red marine standing 4.0 away edge to edge,
+    # inside the blue marine's weapon range 5: the red marine is a threat (it has a weapon that can hit the blue
+    # marine) whether or not it shoots, so the blue marine turns on it (Liquipedia, Automatic Targeting: a target is
+    # kept until a higher-priority one enters weapon range, and threats come first). The layout puts the red marine
+    # in slot 0, the medivac in 1.
+    engine = engine_with(["Marine_RL", "Medivac_RL"], ["Marine"], {0: (16.0, 16.0 + 4.0 + 2 * R), 1: (13.0, 16.0),
                                                                    2: (16.0, 16.0)})
     engine.place(0, 2, target=1)
     engine.step(n_loops=1)
-    assert engine.state.target[0, 2] == 1  # nobody attacks it yet: it keeps shooting the medivac
-    _order_attack(engine, 0, 2)
-    engine.step(n_loops=1)
     assert engine.state.target[0, 2] == 0
+
+
+def test_target_that_cannot_hurt_is_kept_while_threats_are_beyond_weapon_range():
+    # The same, with the red marine 5.25 away edge to edge: inside the blue marine's scan range (5.5) but not its
+    # weapon range (5), so nothing of higher priority has entered weapon range and it keeps shooting the medivac.
+    engine = engine_with(["Marine_RL", "Medivac_RL"], ["Marine"], {0: (16.0, 16.0 + 5.25 + 2 * R), 1: (13.0, 16.0),
+                                                                   2: (16.0, 16.0)})
+    engine.place(0, 2, target=1)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 2] == 1
+
+
+def test_target_that_cannot_hurt_yields_first_to_the_threat_attacking_it():
+    # Two red marines in the blue marine's weapon range: slot 0 at 3.0 edge to edge, idle; slot 1 at 4.5, ordered
+    # to shoot it. Both are threats; the one attacking it ranks first (as in acquisition), though farther.
+    engine = engine_with(["Marine_RL", "Marine_RL", "Medivac_RL"], ["Marine"],
+                         {0: (16.0, 16.0 + 3.0 + 2 * R), 1: (16.0, 16.0 - 4.5 - 2 * R), 2: (13.0, 16.0),
+                          3: (16.0, 16.0)})
+    engine.place(0, 3, target=2)
+    _order_attack(engine, 1, 3)
+    engine.step(n_loops=1)
+    assert engine.state.target[0, 3] == 1
 
 
 def test_ordered_attack_never_switches():
