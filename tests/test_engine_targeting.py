@@ -177,30 +177,19 @@ def test_target_in_weapon_range_is_kept_when_another_enemy_attacks():
     assert engine.state.target[0, 2] == 0
 
 
-MEDIVAC_R = 0.75  # medivac radius
-
-
-def test_target_that_cannot_hurt_yields_to_a_threat_in_weapon_range():
-    # A blue marine shooting a red medivac (in range, harmless) with a red marine standing 4.0 away edge to edge,
-    # inside the blue marine's weapon range 5: the red marine is a threat (it has a weapon that can hit the blue
-    # marine) whether or not it shoots, so the blue marine turns on it (Liquipedia, Automatic Targeting: a target is
-    # kept until a higher-priority one enters weapon range, and threats come first). The layout puts the red marine
-    # in slot 0, the medivac in 1.
-    engine = engine_with(["Marine_RL", "Medivac_RL"], ["Marine"], {0: (16.0, 16.0 + 4.0 + 2 * R), 1: (13.0, 16.0),
+@pytest.mark.parametrize(("gap", "expected"), [(4.0, 0), (5.25, 1)])
+def test_target_that_cannot_hurt_yields_to_a_threat_in_weapon_range(gap, expected):
+    # A blue marine shooting a red medivac (in range, harmless); a red marine stands idle ``gap`` away edge to edge.
+    # At 4.0, inside the blue marine's weapon range 5, the red marine is a threat (a weapon that can hit the blue
+    # marine) whether or not it shoots, and the blue marine turns on it (Liquipedia, Automatic Targeting: a target is
+    # kept until a higher-priority one enters weapon range, threats first). At 5.25, inside the scan range 5.5 but
+    # not the weapon range, nothing has entered weapon range: it keeps the medivac. The layout puts the red marine in
+    # slot 0, the medivac in 1.
+    engine = engine_with(["Marine_RL", "Medivac_RL"], ["Marine"], {0: (16.0, 16.0 + gap + 2 * R), 1: (13.0, 16.0),
                                                                    2: (16.0, 16.0)})
     engine.place(0, 2, target=1)
     engine.step(n_loops=1)
-    assert engine.state.target[0, 2] == 0
-
-
-def test_target_that_cannot_hurt_is_kept_while_threats_are_beyond_weapon_range():
-    # The same, with the red marine 5.25 away edge to edge: inside the blue marine's scan range (5.5) but not its
-    # weapon range (5), so nothing of higher priority has entered weapon range and it keeps shooting the medivac.
-    engine = engine_with(["Marine_RL", "Medivac_RL"], ["Marine"], {0: (16.0, 16.0 + 5.25 + 2 * R), 1: (13.0, 16.0),
-                                                                   2: (16.0, 16.0)})
-    engine.place(0, 2, target=1)
-    engine.step(n_loops=1)
-    assert engine.state.target[0, 2] == 1
+    assert engine.state.target[0, 2] == expected
 
 
 def test_target_that_cannot_hurt_yields_first_to_the_threat_attacking_it():
