@@ -410,29 +410,6 @@ def _scan(n, i, reach, responder, side, alive, x, y, engaged, attacker, slot_sta
 
 
 @helper
-def _threat_in_range(n, i, side, alive, x, y, engaged, slot_stats):
-    """The best threat to unit i within i's weapon range (loop-start snapshot): an enemy attacking i before one that
-    can only hurt it (``_rank``), the closest within a rank; or NO_UNIT."""
-    best = NO_UNIT
-    best_rank = 2
-    best_d = _INF
-    for j in range(n):
-        if not alive[j] or side[j] == side[i] or not _can_hit(slot_stats, i, j):
-            continue
-        rank = _rank(i, j, engaged, slot_stats)
-        if rank > best_rank or rank == 2:
-            continue
-        radii = slot_stats[i, _RADIUS] + slot_stats[j, _RADIUS]
-        if _within(x[i], y[i], x[j], y[j], slot_stats[i, _RANGE] + radii):
-            d = _edge_distance(x[i], y[i], x[j], y[j], radii)
-            if rank < best_rank or d < best_d:
-                best_rank = rank
-                best_d = d
-                best = j
-    return best
-
-
-@helper
 def _acquire(n, i, o, passive, side, alive, x, y, target, engaged, attacker, slot_stats):
     """SC2's target choice for a unit that acquires on its own (idle, attack-moving or holding); see ``_targeting``."""
     hold = o == ORDER_HOLD
@@ -446,9 +423,10 @@ def _acquire(n, i, o, passive, side, alive, x, y, target, engaged, attacker, slo
         if _within(x[i], y[i], x[cur], y[cur], slot_stats[i, _RANGE] + radii):
             # In weapon range: keep it, unless it cannot hurt i and a threat to i is in weapon range too (SC2: a
             # target is kept until a higher-priority one, a threat, enters weapon range; docs/engine_rules.md, C15).
+            # The best enemy in weapon range ranks threats first, so it is a threat if any is there.
             if not _threatens(slot_stats, cur, i):
-                j = _threat_in_range(n, i, side, alive, x, y, engaged, slot_stats)
-                if j >= 0:
+                j = _scan(n, i, slot_stats[i, _RANGE], False, side, alive, x, y, engaged, attacker, slot_stats)
+                if j >= 0 and _rank(i, j, engaged, slot_stats) < 2:
                     target[i] = j
             return
         if not hold and _within(x[i], y[i], x[cur], y[cur], slot_stats[i, _SCAN] + _LEASH + radii):
@@ -476,7 +454,7 @@ def _targeting(n, r, slot_stats):
     - Ordered attacks and heals keep their target until it dies (then the order completes): no switching.
     - Moving units acquire nothing. Passive (SMAC's ``*_RL``) units acquire only while attack-moving, never respond.
     - Units that acquire (idle, attack-moving, holding): a target in weapon range is kept, except that a target that
-      cannot hurt the unit (a medivac) yields to a threat within weapon range (``_threat_in_range``). A target out of
+      cannot hurt the unit (a medivac) yields to a threat within weapon range (the best-ranked, ``_scan``). A target out of
       weapon range is chased (not on hold) while the unit re-acquires every loop: it switches to an enemy attacking
       it, else to one that can hurt it, else to any enemy in scan range, and within a rank to a closer one (ties keep
       the chase).
