@@ -454,10 +454,10 @@ def _targeting(n, r, slot_stats):
     - Ordered attacks and heals keep their target until it dies (then the order completes): no switching.
     - Moving units acquire nothing. Passive (SMAC's ``*_RL``) units acquire only while attack-moving, never respond.
     - Units that acquire (idle, attack-moving, holding): a target in weapon range is kept, except that a target that
-      cannot hurt the unit (a medivac) yields to a threat within weapon range (the best-ranked, ``_scan``). A target out of
-      weapon range is chased (not on hold) while the unit re-acquires every loop: it switches to an enemy attacking
-      it, else to one that can hurt it, else to any enemy in scan range, and within a rank to a closer one (ties keep
-      the chase).
+      cannot hurt the unit (a medivac) yields to the best-ranked threat within weapon range. A target out of weapon
+      range is chased (not on hold) while the unit re-acquires every loop: it switches to an enemy attacking it, else
+      to one that can hurt it, else to any enemy in scan range, and within a rank to a closer one (ties keep the
+      chase).
       Without a target: the best enemy within scan range (weapon range on hold); a responder (not passive, idle: no
       order) then answers the last enemy that hit it, wherever it is.
 
