@@ -18,7 +18,7 @@ from numba import njit, prange
 import smac_hard_gym.engine.battle as battle_module
 from smac_hard_gym.engine import BattleEngine, Commands
 from smac_hard_gym.engine.batch_ops import count_alive
-from smac_hard_gym.engine.kernels import _separation, _sort_by_x, step_kernels_for
+from smac_hard_gym.engine.kernels import _FEW_UNITS, _separation, _sort_by_x, step_kernels_for
 from smac_hard_gym.engine.scheduling import fetch_add
 from smac_hard_gym.engine.state import CMD_ATTACK, CMD_MOVE, ORDER_HOLD, ORDER_IDLE, BattleState
 from smac_hard_gym.engine.units import STATS, S, unit_index
@@ -90,10 +90,13 @@ def _scattered_pairs(rng, n_groups):
     return (pick, np.array(alive)[order], np.array(hold)[order], np.array(x)[order], np.array(y)[order])
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
+# 120 groups: the sorted sweep; 10 groups (at most 20 units): the pair test that lets a few units skip a pass (seeds
+# whose small scene has a push in it).
+@pytest.mark.parametrize("seed,n_groups", [(seed, 120) for seed in range(5)] + [(seed, 10) for seed in (0, 3, 4, 5, 6)])
+def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed, n_groups):
     rng = np.random.default_rng(seed)
-    names, alive, hold, x, y = _scattered_pairs(rng, n_groups=120)
+    names, alive, hold, x, y = _scattered_pairs(rng, n_groups=n_groups)
+    assert (len(names) <= _FEW_UNITS) == (n_groups == 10)
     slot_stats = np.ascontiguousarray(STATS[[unit_index(name) for name in names]])
     walk = np.ones((2, 128, 128), dtype=np.uint8)
     order = np.where(hold, ORDER_HOLD, ORDER_IDLE).astype(np.int8)
@@ -108,6 +111,21 @@ def test_sweep_pass_pushes_every_overlapping_pair_like_the_all_pairs_rule(seed):
     np.testing.assert_allclose(rows.y, expected_y, rtol=0, atol=1e-12)
     assert worst == pytest.approx(expected_worst, abs=1e-12)
     assert expected_worst > 0.01  # the scene did contain pushes
+
+
+def test_a_few_units_that_do_not_overlap_are_left_where_they_are():
+    # Six marines in a row 0.76 apart centre to centre (edges 0.01 apart: no overlap) and a medivac right above one
+    # of them (another plane): the pass pushes nobody and reports no overlap.
+    x = np.array([10.0 + 0.76 * k for k in range(6)] + [11.52])
+    y = np.full(7, 10.0)
+    slot_stats = np.ascontiguousarray(STATS[[unit_index("marine")] * 6 + [unit_index("medivac")]])
+    walk = np.ones((2, 32, 32), dtype=np.uint8)
+    rows = battle_rows_of(x.copy(), y.copy(), np.ones(7, dtype=bool))
+    assert _separation(7, rows, slot_stats, walk, 0.75) == 0.0
+    assert rows.x.tolist() == x.tolist() and rows.y.tolist() == y.tolist()
+    rows.x[1] = 10.5  # marines 0 and 1 now 0.5 apart: each is pushed 0.125 away from the other
+    assert _separation(7, rows, slot_stats, walk, 0.75) == pytest.approx(0.25)
+    assert rows.x[0] == pytest.approx(9.875, abs=1e-3) and rows.x[1] == pytest.approx(10.625, abs=1e-3)
 
 
 def test_sweep_passes_clear_a_dense_crowd():
