@@ -2,8 +2,9 @@
 
 Each version (a git revision, or ``WORKTREE`` for the working tree as it is) is installed, not editable, into its
 own folder (``pip install --no-deps --target``) and imported from there through ``PYTHONPATH``, with its own numba
-cache, so the two never share code or compiled kernels. Then ``--rounds`` rounds run each version once per
-measurement, alternating which goes first, in fresh processes:
+cache, so the two never share code or compiled kernels; a folder that already holds such an install can be given
+instead of a revision (on a machine without the repository's history). Then ``--rounds`` rounds run each version
+once per measurement, alternating which goes first, in fresh processes:
 
 - ``gym``: ``gymnasium.make("SMACHard-<map>-v0", opponent="base")``, one battle: ``action_masks()`` and ``step`` with
   random legal actions, resets included (the loop MaskablePPO runs around the env);
@@ -110,7 +111,11 @@ def _cpu_name() -> str:
 
 
 def install(rev: str, root: Path) -> Path:
-    """A non-editable install of ``rev`` (or the working tree) in its own folder; returns the folder."""
+    """A non-editable install of ``rev`` (or the working tree) in its own folder; returns the folder. A folder that
+    already holds an install (a ``smac_hard_gym`` package in it, as ``pip install --no-deps --target DIR`` leaves it)
+    is used as it is: that is how versions travel to a machine without the repository's history."""
+    if Path(rev).is_dir() and (Path(rev) / "smac_hard_gym" / "__init__.py").is_file():
+        return Path(rev).resolve()
     target = root / ("worktree" if rev == WORKTREE else rev)
     if rev == WORKTREE:
         source = REPO
@@ -136,8 +141,10 @@ def measure_once(site: Path, cache: Path, what: str, map_name: str, windows: int
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--before", required=True, help="git revision (or WORKTREE)")
-    p.add_argument("--after", default=WORKTREE, help="git revision, or WORKTREE (default: the working tree)")
+    p.add_argument("--before", required=True,
+                   help="git revision, WORKTREE, or a folder holding an install (pip install --no-deps --target)")
+    p.add_argument("--after", default=WORKTREE,
+                   help="git revision, WORKTREE (the default: the working tree), or a folder holding an install")
     p.add_argument("--map", default="3m")
     p.add_argument("--measure", default="gym,vector1,vector64,engine4096",
                    help="comma list of gym, vector<N>, engine<N> (default gym,vector1,vector64,engine4096)")
