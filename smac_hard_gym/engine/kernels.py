@@ -40,7 +40,7 @@ Speed notes (each measured; see ``tests/test_engine_speedups.py`` for the mechan
 - Separation finds overlapping pairs by sweeping the units in x order (``_sort_by_x``) instead of testing all
   pairs: 27m_vs_30m's step took half the time after this.
 - Most separation passes find no overlap; a battle of up to ``_FEW_UNITS`` units tests its pairs and skips such
-  a pass without sorting (3m with 4096 battles 1.20 of the sweep alone, 5m_vs_6m 1.19, MMM2 1.05).
+  a pass without sorting (measured where ``_FEW_UNITS`` is set).
 - ``step_batch`` hands battles to the worker threads in small chunks from a shared counter (``scheduling``), so a
   thread that another process delays does not hold up the step.
 """
