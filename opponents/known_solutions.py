@@ -29,6 +29,11 @@ package); ``smac-hard-gym solutions`` prints the table; ``tests/test_known_solut
   share of 27m_vs_30m (the learners of the SMAC-HARD paper reach 0.42-0.61 there), where attacking the nearest
   enemy does worse. On 6h_vs_8z (SMAC's trick there is also focus fire) the same controller loses: hydralisks and
   zealots run at the same speed, so the zealots reach the line; the paper's learners win 0.14 and 0.02 there.
+- MMM2, **the medivac as bait** (the tactic the shared policy learned on this engine, where it wins 0.84; the
+  paper's learners win 0.45-0.79 in StarCraft II): the medivac hovers ahead of the marines and heals from there, so
+  SMAC's marines stop to shoot it out of the marines' reach; their own medivac, with nobody hurt to heal, flies on
+  alone into the marines' line and dies first; the marauders hit the enemy's marauders from a flank; then
+  allocated focus fire. The arc and focus fire of 25m, medivac healing behind, wins none.
 - 3s5z_vs_3s6z, **hide, then pick off** (the paper's section 3.1 and its figure 1): the army hides in a corner away
   from the enemy's attack-move path; SMAC's opponent arrives at its point and idles there, so one stalker can pull
   single enemies out of the group (an idle unit turns on whoever shoots it) into the waiting army. SMAC-HARD's
@@ -61,7 +66,8 @@ from smac_hard_gym.opponents.helpers import (
     to_pathable,
 )
 
-__all__ = ["AlternatingAggro", "TankSwap", "StalkerKite", "HoldChoke", "OpenFight", "ArcFocus", "HideThenPickOff",
+__all__ = ["AlternatingAggro", "TankSwap", "StalkerKite", "HoldChoke", "OpenFight", "ArcFocus", "MedivacDecoy",
+           "HideThenPickOff",
            "Claim",
            "Verdict", "CLAIMS", "CONTROLLERS", "claims_for_map", "make_controller"]
 
@@ -305,7 +311,8 @@ class ArcFocus(BatchScript):
                  & enemy[None, :, S["attributes"]].astype(np.int64)) != 0
         per_hit = own[:, None, S["damage"]] + np.where(bonus, own[:, None, S["bonus_damage"]], 0.0)
         per_shot = (np.maximum(per_hit - enemy[None, :, S["armor"]], 0.5) * own[:, None, S["hits"]])[None]  # (1, n, m)
-        shots_needed = np.ceil(frame.enemy_hp[:, None, :] / per_shot)  # (R, n, m), per shooter type
+        # (R, n, m), per shooter type; a unit without a weapon (medivac) never has a target in range: no shots
+        shots_needed = np.ceil(frame.enemy_hp[:, None, :] / np.where(per_shot > 0, per_shot, np.inf))
         ready = frame.own_cooldown <= FIRES_THIS_STEP
         targets = nearest(frame.dist, frame.targetable)
         hp = frame.enemy_hp
@@ -322,6 +329,107 @@ class ArcFocus(BatchScript):
                 if ready[r, u]:
                     taken[k] += 1
         return targets
+
+
+# MMM2's bait, in own-spawn coordinates (ahead along the advance, across to its left): the medivac's post, the
+# marines' line, and each marauder's post on the right-hand flank (the first marauder slot first).
+_BAIT_AHEAD = 4.0
+_LINE_AHEAD = 1.0
+_FLANK_POSTS = np.array([(4.5, -6.0), (3.4, -4.8)])
+
+
+class MedivacDecoy(BatchScript):
+    """MMM2: the medivac as bait, the enemy's medivac shot down first, the marauders on a flank.
+
+    The medivac hovers 3 ahead of the marines' line and heals the flank from there: SMAC's opponent attack-moves,
+    and its marines acquire the first target in range, the medivac, and keep shooting it until a unit that can hit
+    back comes within their weapon range (docs/engine_rules.md, section 9), so they stop short of the line. Their
+    medivac finds nobody hurt to heal and flies on ahead of its army into the marines' line, which shoots it down;
+    the marauders, out on the right flank, hold fire until then (a hurt enemy marauder would hold the medivac
+    back to heal it) and shoot the enemy's marauders. Once the enemy's medivac is dead: allocated focus fire
+    (:meth:`ArcFocus.allocate`), the marauders on the most hurt enemy marauder in range, a badly hurt unit being
+    shot steps back.
+    """
+
+    name = "medivac_decoy"
+    description = ("the medivac hovers ahead as bait and heals; the marines shoot the enemy medivac flying in, the "
+                   "marauders hit the enemy's marauders from a flank; then allocated focus fire")
+    heal_support = False  # the medivac's orders are part of the plan
+    pull_back_hp = 10.0  # a unit being shot steps back at this health or less
+    hold_fire_steps = 20  # the marauders hold fire until the enemy's medivac is in the marines' range, or this long
+
+    def plan(self, frame: Frame, orders: Orders) -> None:
+        alive = frame.own_alive
+        medivac = of_kind(frame.own_type, "medivac") & alive
+        marines = of_kind(frame.own_type, "marine") & alive
+        marauders = of_kind(frame.own_type, "marauder") & alive
+        enemy_medivac = of_kind(frame.enemy_type, "medivac") & frame.enemy_alive
+        enemy_marauders = of_kind(frame.enemy_type, "marauder") & frame.enemy_alive
+        in_range = frame.hittable & (frame.edge <= frame.own_range[:, :, None])
+        baiting = enemy_medivac.any(axis=1)[:, None]  # (R, 1)
+        spotted = (in_range & enemy_medivac[:, None, :] & marines[:, :, None]).any(axis=(1, 2))
+        hold_fire = baiting & ~(spotted | (frame.step >= self.hold_fire_steps))[:, None]
+
+        px, py = self._posts(frame)
+        at_post = np.hypot(frame.own_x - px, frame.own_y - py) < 0.4
+        ground = marines | marauders
+        orders.move(ground & ~at_post, px, py)
+        orders.stop(ground & at_post)
+
+        focus = ArcFocus.allocate(frame, in_range)
+        hp = np.broadcast_to(frame.enemy_hp[:, None, :], in_range.shape)
+        on_medivac = argmin_masked(frame.edge, in_range & enemy_medivac[:, None, :], axis=2)
+        on_marauder = argmin_masked(hp, in_range & enemy_marauders[:, None, :], axis=2)
+        shooting = in_range.any(axis=2)
+        # Bait: the marines take the medivac once it is in range (anything in range once they may fire); the
+        # marauders the enemy's marauders once they may fire.
+        orders.attack(marines & baiting & shooting & ((on_medivac >= 0) | ~hold_fire),
+                      np.where(on_medivac >= 0, on_medivac, focus))
+        orders.attack(marauders & baiting & ~hold_fire & shooting, np.where(on_marauder >= 0, on_marauder, focus))
+        # Fight: allocated focus fire, walking at the nearest enemy when none is in range.
+        fighting = ground & ~baiting
+        orders.attack(fighting, focus)
+        orders.attack(fighting & marauders & (on_marauder >= 0), on_marauder)
+        _step_back(frame, orders, fighting & _chased(frame) & (frame.own_hp <= self.pull_back_hp), 1.5)
+        self._medivac(frame, orders, medivac, baiting)
+
+    @staticmethod
+    def _posts(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+        """(R, n) posts of the marines' line and the marauders' flank; a marauder walks across to its flank first
+        and then ahead, out of the enemy's reach."""
+        forward = frame.forward
+        across = np.array([-forward[1], forward[0]])
+        spawn = frame.view.own_spawn
+        types = frame.own_type[0]
+        ahead = np.zeros(frame.n_own)
+        side = np.zeros(frame.n_own)
+        line = np.flatnonzero(of_kind(types, "marine"))
+        ahead[line] = _LINE_AHEAD
+        side[line] = (np.arange(line.size) - (line.size - 1) / 2.0)  # 1 apart
+        flank = np.flatnonzero(of_kind(types, "marauder"))[:len(_FLANK_POSTS)]
+        ahead[flank], side[flank] = _FLANK_POSTS[:flank.size, 0], _FLANK_POSTS[:flank.size, 1]
+        rx, ry = frame.own_x - spawn[0], frame.own_y - spawn[1]
+        now_ahead = rx * forward[0] + ry * forward[1]
+        now_side = rx * across[0] + ry * across[1]
+        crossing = of_kind(frame.own_type, "marauder") & (np.abs(now_side - side) > 0.6)
+        ahead = np.where(crossing, now_ahead, ahead)
+        return (spawn[0] + ahead * forward[0] + side * across[0], spawn[1] + ahead * forward[1] + side * across[1])
+
+    @staticmethod
+    def _medivac(frame: Frame, orders: Orders, medivac: np.ndarray, baiting: np.ndarray) -> None:
+        """At its post while baiting, healing only the hurt it reaches from there; after that, the most hurt."""
+        spawn, forward = frame.view.own_spawn, frame.forward
+        bx, by = spawn[0] + _BAIT_AHEAD * forward[0], spawn[1] + _BAIT_AHEAD * forward[1]
+        orders.move(medivac, bx, by)
+        health_max = STATS[frame.own_type, S["health"]]
+        hurt = of_kind(frame.own_type, "marine", "marauder") & frame.own_alive & (frame.own_health < health_max)
+        # One medivac on MMM2: its position, size and heal range as (R, 1) columns.
+        mx, my, radius, reach = (np.where(medivac, v, 0.0).sum(axis=1, keepdims=True)
+                                 for v in (frame.own_x, frame.own_y, frame.own_radius, frame.own_range))
+        edge = np.hypot(frame.own_x - mx, frame.own_y - my) - frame.own_radius - radius
+        posted = (np.hypot(mx - bx, my - by) < 0.5) | ~baiting
+        patient = argmin_masked(frame.own_health / health_max, hurt & ((edge <= reach) | ~baiting))
+        orders.heal(medivac & posted & (patient >= 0)[:, None], np.broadcast_to(patient[:, None], medivac.shape))
 
 
 class HideThenPickOff(BatchScript):
@@ -455,6 +563,7 @@ _FACTORIES: dict[str, Callable[[], BatchScript]] = {
     "hold_choke": HoldChoke,
     "open_fight": OpenFight,
     "arc_focus": ArcFocus,
+    "medivac_decoy": MedivacDecoy,
     "hide_pick_off": HideThenPickOff,
 }
 CONTROLLERS: dict[str, str] = {name: factory().description for name, factory in _FACTORIES.items()}
@@ -488,6 +597,9 @@ CLAIMS: tuple[Claim, ...] = (
           "in (QMIX 0.14, MAPPO 0.02 in SC2 at 2M steps)", at_most=0.2),
     Claim("27m_vs_30m", "arc_focus", "smac", "three marines short, the arc and allocated focus fire still win a share "
           "(QMIX 0.42, MAPPO 0.61 in SC2 at 2M steps)", at_least=0.2, better_than="open_fight"),
+    Claim("MMM2", "medivac_decoy", "smac", "the enemy's marines stop to shoot a medivac ahead of the line, their "
+          "medivac flies in alone and dies, the marauders hit from a flank (QMIX 0.79, MAPPO 0.45 in SC2 at 2M steps)",
+          at_least=0.2, better_than="arc_focus"),
     # Retired: 3s5z_vs_3s6z `hide_pick_off` against `smac` (the paper's exploit, section 3, as this project scripted
     # it: pull single units out of the enemy idling at its point). SC2's call for help (docs/engine_rules.md, C13)
     # brings every ally within 4 of the pulled unit, and the enemy idles as one clump 3.4 across, so no single unit

@@ -30,6 +30,9 @@ def test_the_claims_cover_every_scenario_the_issue_names():
             ("2m_vs_1z", "kite_aggro", "weakest"), ("3s_vs_3z", "stalker_kite", "smac"),
             ("3s_vs_3z", "stalker_stand", "smac"), ("3s_vs_4z", "stalker_kite", "smac"),
             ("3s_vs_4z", "stalker_stand", "smac"), ("corridor", "hold_choke", "smac")} <= pairs
+    # The maps where the engine and the game were furthest apart each have a claim against SMAC's opponent.
+    assert {("25m", "arc_focus", "smac"), ("27m_vs_30m", "arc_focus", "smac"), ("MMM2", "medivac_decoy", "smac"),
+            ("6h_vs_8z", "arc_focus", "smac"), ("corridor", "hold_choke", "smac")} <= pairs
 
 
 def test_the_same_zealot_decides_2m_vs_1z():
