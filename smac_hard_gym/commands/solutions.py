@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 
 HELP = ("play scripted strategies whose outcome is known from the game (alternating aggro, kiting, holding a "
-        "choke, hide and pick off) against the opponents they beat or lose to, and check the win-rate bounds")
+        "choke, an arc with focus fire, the medivac as bait) against the opponents they beat or lose to, and check "
+        "the win-rate bounds")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
