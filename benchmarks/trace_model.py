@@ -10,8 +10,9 @@ step, one line per step:
 
 Each unit reads like ``125a**``: 125 health + shield, its order (``i`` idle, ``m`` move, ``a`` attack, ``A``
 attack-move, ``h`` hold, ``H`` heal) and a ``*`` per unit whose last shot or heal of the step went to it; ``-`` is
-dead. ``--orders`` adds each learner unit's order target or point and position. The column ``gap`` is the
-shortest distance between the two sides' units, centre to centre.
+dead. ``--orders`` adds each learner unit's order target or point and position; ``--enemy`` adds each opponent
+unit's weapon target (the slot it is engaging) and position. The column ``gap`` is the shortest distance between
+the two sides' units, centre to centre.
 
     python benchmarks/trace_model.py --model runs/MMM2-smac-s0/model.zip --games 8 --show 5
 """
@@ -36,7 +37,8 @@ def _unit(health: float, order: int, hits: int, alive: bool) -> str:
     return f"{health:.0f}{ORDER_LETTERS[order]}{'*' * hits}" if alive else "-"
 
 
-def trace(model_path: Path, games: int, opponent: str, show: int | None, orders: bool) -> list[bool]:
+def trace(model_path: Path, games: int, opponent: str, show: int | None, orders: bool,
+          enemy: bool = False) -> list[bool]:
     """Play ``games`` greedy test games; print game ``show`` step by step. Returns who won each game."""
     import torch
 
@@ -60,7 +62,7 @@ def trace(model_path: Path, games: int, opponent: str, show: int | None, orders:
                       f"{' '.join(names[red.sum():])}")
             for step in range(venv.episode_limit + 1):
                 if game == show:
-                    print(_line(step, st, red, orders))
+                    print(_line(step, st, red, orders, enemy))
                 actions, _ = model.predict(obs, action_masks=venv.action_masks(), deterministic=True)
                 obs, _, terminated, truncated, infos = venv.step(actions)
                 if terminated[0] or truncated[0]:
@@ -72,7 +74,7 @@ def trace(model_path: Path, games: int, opponent: str, show: int | None, orders:
     return won
 
 
-def _line(step: int, st: object, red: np.ndarray, orders: bool) -> str:
+def _line(step: int, st: object, red: np.ndarray, orders: bool, enemy: bool = False) -> str:
     alive, x, y = st.alive[0], st.x[0], st.y[0]
     life = st.health[0] + st.shield[0]
     fired = st.fired_at[0]
@@ -89,6 +91,10 @@ def _line(step: int, st: object, red: np.ndarray, orders: bool) -> str:
                   f">({st.order_x[0, i]:.1f},{st.order_y[0, i]:.1f})" if st.order[0, i] in ON_POINT else "")
                + f"@({x[i]:.1f},{y[i]:.1f})" for i in np.flatnonzero(red & alive)]
         text += "\n      " + " ".join(own)
+    if enemy:
+        theirs = [f"{i}:>{st.target[0, i] if st.target[0, i] >= 0 else '-'}@({x[i]:.1f},{y[i]:.1f})"
+                  for i in np.flatnonzero(~red & alive)]
+        text += "\n   vs " + " ".join(theirs)
     return text
 
 
@@ -99,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--opponent", default="smac", help="the opponent script (default smac)")
     p.add_argument("--show", type=int, default=None, help="print this game (0-based) step by step")
     p.add_argument("--orders", action="store_true", help="with --show: each learner unit's order and position")
+    p.add_argument("--enemy", action="store_true", help="with --show: each opponent unit's target and position")
     a = p.parse_args(argv)
     if a.games < 1:
         p.error(f"--games must be >= 1, got {a.games}")
@@ -106,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--show must be a game in 0..{a.games - 1}, got {a.show}")
     if not a.model.is_file():
         p.error(f"no model at {a.model}")
-    won = trace(a.model, a.games, a.opponent, a.show, a.orders)
+    won = trace(a.model, a.games, a.opponent, a.show, a.orders, a.enemy)
     print(f"won {sum(won)} of {len(won)}")
     return 0
 
