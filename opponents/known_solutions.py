@@ -356,7 +356,7 @@ class MedivacDecoy(BatchScript):
                    "marauders hit the enemy's marauders from a flank; then allocated focus fire")
     heal_support = False  # the medivac's orders are part of the plan
     pull_back_hp = 10.0  # a unit being shot steps back at this health or less
-    hold_fire_steps = 20  # the marauders hold fire until the enemy's medivac is in the marines' range, or this long
+    hold_fire_steps = 20  # fire at nothing but the enemy's medivac until it is in the marines' range, or this long
 
     def plan(self, frame: Frame, orders: Orders) -> None:
         alive = frame.own_alive
@@ -405,7 +405,7 @@ class MedivacDecoy(BatchScript):
         side = np.zeros(frame.n_own)
         line = np.flatnonzero(of_kind(types, "marine"))
         ahead[line] = _LINE_AHEAD
-        side[line] = (np.arange(line.size) - (line.size - 1) / 2.0)  # 1 apart
+        side[line] = np.arange(line.size) - (line.size - 1) / 2.0  # 1 apart
         flank = np.flatnonzero(of_kind(types, "marauder"))[:len(_FLANK_POSTS)]
         ahead[flank], side[flank] = _FLANK_POSTS[:flank.size, 0], _FLANK_POSTS[:flank.size, 1]
         rx, ry = frame.own_x - spawn[0], frame.own_y - spawn[1]
