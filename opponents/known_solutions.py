@@ -417,19 +417,22 @@ class MedivacDecoy(BatchScript):
 
     @staticmethod
     def _medivac(frame: Frame, orders: Orders, medivac: np.ndarray, baiting: np.ndarray) -> None:
-        """At its post while baiting, healing only the hurt it reaches from there; after that, the most hurt."""
+        """At its post while baiting, healing only the hurt it reaches from there; after that, the most hurt (at the
+        post when nobody is)."""
         spawn, forward = frame.view.own_spawn, frame.forward
         bx, by = spawn[0] + _BAIT_AHEAD * forward[0], spawn[1] + _BAIT_AHEAD * forward[1]
-        orders.move(medivac, bx, by)
+        support_healers(orders, frame, follow=(np.full(frame.size, bx), np.full(frame.size, by)))
+        orders.move(medivac & baiting, bx, by)
         health_max = STATS[frame.own_type, S["health"]]
         hurt = of_kind(frame.own_type, "marine", "marauder") & frame.own_alive & (frame.own_health < health_max)
         # One medivac on MMM2: its position, size and heal range as (R, 1) columns.
         mx, my, radius, reach = (np.where(medivac, v, 0.0).sum(axis=1, keepdims=True)
                                  for v in (frame.own_x, frame.own_y, frame.own_radius, frame.own_range))
         edge = np.hypot(frame.own_x - mx, frame.own_y - my) - frame.own_radius - radius
-        posted = (np.hypot(mx - bx, my - by) < 0.5) | ~baiting
-        patient = argmin_masked(frame.own_health / health_max, hurt & ((edge <= reach) | ~baiting))
-        orders.heal(medivac & posted & (patient >= 0)[:, None], np.broadcast_to(patient[:, None], medivac.shape))
+        posted = np.hypot(mx - bx, my - by) < 0.5
+        patient = argmin_masked(frame.own_health / health_max, hurt & (edge <= reach))
+        orders.heal(medivac & baiting & posted & (patient >= 0)[:, None],
+                    np.broadcast_to(patient[:, None], medivac.shape))
 
 
 class HideThenPickOff(BatchScript):
