@@ -423,14 +423,13 @@ class MedivacDecoy(BatchScript):
         bx, by = spawn[0] + _BAIT_AHEAD * forward[0], spawn[1] + _BAIT_AHEAD * forward[1]
         support_healers(orders, frame, follow=(np.full(frame.size, bx), np.full(frame.size, by)))
         orders.move(medivac & baiting, bx, by)
-        health_max = STATS[frame.own_type, S["health"]]
-        hurt = of_kind(frame.own_type, "marine", "marauder") & frame.own_alive & (frame.own_health < health_max)
+        hurt = of_kind(frame.own_type, "marine", "marauder") & frame.own_alive & (frame.own_health_frac < 1.0)
         # One medivac on MMM2: its position, size and heal range as (R, 1) columns.
         mx, my, radius, reach = (np.where(medivac, v, 0.0).sum(axis=1, keepdims=True)
                                  for v in (frame.own_x, frame.own_y, frame.own_radius, frame.own_range))
         edge = np.hypot(frame.own_x - mx, frame.own_y - my) - frame.own_radius - radius
         posted = np.hypot(mx - bx, my - by) < 0.5
-        patient = argmin_masked(frame.own_health / health_max, hurt & (edge <= reach))
+        patient = argmin_masked(frame.own_health_frac, hurt & (edge <= reach))
         orders.heal(medivac & baiting & posted & (patient >= 0)[:, None],
                     np.broadcast_to(patient[:, None], medivac.shape))
 
